@@ -1,0 +1,487 @@
+"""BVH reader and writer: text <-> Skeleton + Motion (metres, Z up, quaternions).
+
+Reading is two steps so that callers can inspect a file before converting it: `parse_bvh` checks
+the file and returns it in its own units and axes (`BVHData`); `to_motion` converts to metres and
+Z up. `read_bvh` does both. Every problem raises `BVHError` naming the file and the 1-based line.
+
+Conventions matched to Blender's bundled importer (io_anim_bvh), so the two agree to the millimetre:
+- a joint's rotation channels compose left to right (channels "Zrotation Xrotation Yrotation"
+  mean R = Rz @ Rx @ Ry), angles in degrees;
+- a joint with position channels is placed at the channel values (not OFFSET + values); a missing
+  position component counts as 0; the root without position channels sits at its OFFSET;
+- Y-up files are turned Z-up by +90 degrees about X: (x, y, z) -> (x, -z, y).
+
+The motion block is parsed in one vectorised pass (`np.fromstring`); a slow per-line pass runs only
+to locate an error.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import quat
+from .errors import BVHError
+from .skeleton import Motion, Skeleton
+
+MAX_JOINTS = 1000
+MAX_DEPTH = 100
+# File units -> metres. "cmu" is the CMU ASF unit (1/0.45 inch) kept by many CMU BVH conversions.
+UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254, "cmu": 0.0254 / 0.45}
+TYPICAL_HEIGHT_M = 1.75
+_POSITION = {"xposition": 0, "yposition": 1, "zposition": 2}
+_ROTATION = {"xrotation": "X", "yrotation": "Y", "zrotation": "Z"}
+# +90 degrees about X: turns a Y-up file Z-up.
+_Y_TO_Z = quat.from_axis_angle(np.array([1.0, 0.0, 0.0]), np.pi / 2)
+
+
+@dataclass
+class Channels:
+    """One joint's channels in file order: position axes (0..2) and rotation axis letters, each
+    with its column in a motion line (a file may interleave positions and rotations)."""
+
+    position: list[int] = field(default_factory=list)
+    position_columns: list[int] = field(default_factory=list)
+    rotation: str = ""
+    rotation_columns: list[int] = field(default_factory=list)
+
+    @property
+    def count(self) -> int:
+        return len(self.position) + len(self.rotation)
+
+
+@dataclass
+class BVHData:
+    """A checked BVH file in its own units and axes. `values` is (frames, channels), degrees."""
+
+    path: str
+    names: list[str]
+    parents: list[int]
+    offsets: np.ndarray
+    end_sites: dict[int, np.ndarray]
+    channels: list[Channels]
+    frame_time: float
+    values: np.ndarray
+
+    @property
+    def num_frames(self) -> int:
+        return self.values.shape[0]
+
+
+# ---------------------------------------------------------------------------------------------
+# Text -> lines
+
+
+def _read_source(source: str | Path | bytes, name: str | None) -> tuple[str, str]:
+    """Return (label for errors, decoded text). Accepts a path or the file's bytes."""
+    if isinstance(source, bytes):
+        label, raw = name or "<bytes>", source
+    else:
+        label = str(source)
+        try:
+            raw = Path(source).read_bytes()
+        except OSError as exc:
+            raise BVHError(f"cannot read the file ({exc.strerror or exc})", label) from None
+    if not raw.strip():
+        raise BVHError("the file is empty", label, 1)
+    nul = raw.find(b"\x00")
+    if nul >= 0:
+        raise BVHError("binary data (NUL byte), not a BVH text file", label, raw.count(b"\n", 0, nul) + 1)
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        raise BVHError("not UTF-8 text (binary or another encoding)", label, line) from None
+    return label, text
+
+
+def _number(token: str, label: str, line: int, what: str) -> float:
+    try:
+        value = float(token)
+    except ValueError:
+        raise BVHError(f"{what}: '{token}' is not a number", label, line) from None
+    if not np.isfinite(value):
+        raise BVHError(f"{what}: '{token}' is not a finite number", label, line)
+    return value
+
+
+# ---------------------------------------------------------------------------------------------
+# HIERARCHY
+
+
+class _Tokens:
+    """The hierarchy's tokens with their line numbers, consumed front to back."""
+
+    def __init__(self, lines: list[str], label: str, end_line: int):
+        self.items = [(tok, n) for n, text in enumerate(lines, 1) for tok in text.split()]
+        self.pos = 0
+        self.label = label
+        self.end_line = end_line  # the line reported when tokens run out (MOTION or last line)
+
+    def peek(self) -> tuple[str | None, int]:
+        if self.pos < len(self.items):
+            return self.items[self.pos]
+        return None, self.end_line
+
+    def take(self, context: str) -> tuple[str, int]:
+        tok, line = self.peek()
+        if tok is None:
+            raise BVHError(f"the hierarchy ends early: {context}", self.label, line)
+        self.pos += 1
+        return tok, line
+
+    def expect(self, word: str, context: str) -> int:
+        tok, line = self.take(context)
+        if tok.upper() != word.upper():
+            raise BVHError(f"expected '{word}' {context}, found '{tok}'", self.label, line)
+        return line
+
+
+class _HierarchyParser:
+    def __init__(self, tokens: _Tokens):
+        self.t = tokens
+        self.label = tokens.label
+        self.names: list[str] = []
+        self.name_lines: dict[str, int] = {}
+        self.parents: list[int] = []
+        self.offsets: list[tuple[float, float, float]] = []
+        self.end_sites: dict[int, np.ndarray] = {}
+        self.channels: list[Channels] = []
+        self.columns = 0
+
+    def parse(self) -> None:
+        self.t.expect("HIERARCHY", "at the start of the file")
+        self.t.expect("ROOT", "after HIERARCHY")
+        self._joint(parent=-1, depth=0)
+        if self.columns == 0:
+            raise BVHError("no joint has CHANNELS, so there is no motion to read", self.label, self.t.end_line)
+        tok, line = self.t.peek()
+        if tok is not None:
+            if tok == "}":
+                raise BVHError("unbalanced braces: '}' after the root joint was closed", self.label, line)
+            raise BVHError(f"unexpected '{tok}' after the root joint (only one ROOT is supported)", self.label, line)
+
+    def _offset(self, context: str) -> tuple[float, float, float]:
+        line = self.t.expect("OFFSET", context)
+        vals = []
+        for _ in range(3):
+            tok, tok_line = self.t.take(f"OFFSET needs 3 numbers ({context})")
+            if tok_line != line:
+                raise BVHError(f"OFFSET needs 3 numbers on its line ({context})", self.label, line)
+            vals.append(_number(tok, self.label, line, "OFFSET"))
+        return vals[0], vals[1], vals[2]
+
+    def _channels(self, joint: str) -> Channels:
+        line = self.t.expect("CHANNELS", f"after the OFFSET of joint '{joint}'")
+        tok, _ = self.t.take(f"CHANNELS of joint '{joint}'")
+        if not tok.isdigit() or int(tok) > 6:
+            raise BVHError(f"CHANNELS count of joint '{joint}' must be 0 to 6, found '{tok}'", self.label, line)
+        spec = Channels()
+        for column in range(self.columns, self.columns + int(tok)):
+            name, name_line = self.t.take(f"CHANNELS of joint '{joint}' lists fewer names than its count")
+            key = name.lower()
+            if name_line != line:
+                raise BVHError(f"CHANNELS of joint '{joint}' lists fewer names than its count {tok}", self.label, line)
+            if key in _POSITION and _POSITION[key] not in spec.position:
+                spec.position.append(_POSITION[key])
+                spec.position_columns.append(column)
+            elif key in _ROTATION and _ROTATION[key] not in spec.rotation:
+                spec.rotation += _ROTATION[key]
+                spec.rotation_columns.append(column)
+            elif key in _POSITION or key in _ROTATION:
+                raise BVHError(f"channel '{name}' repeated on joint '{joint}'", self.label, line)
+            else:
+                raise BVHError(f"unknown channel name '{name}' on joint '{joint}'", self.label, line)
+        nxt, nxt_line = self.t.peek()
+        if nxt_line == line and nxt is not None:
+            raise BVHError(f"CHANNELS of joint '{joint}' lists more names than its count {tok}", self.label, line)
+        self.columns += spec.count
+        return spec
+
+    def _joint(self, parent: int, depth: int) -> None:
+        name, line = self.t.take("a joint name is missing")
+        if depth > MAX_DEPTH:
+            raise BVHError(f"joints nested more than {MAX_DEPTH} deep", self.label, line)
+        if len(self.names) >= MAX_JOINTS:
+            raise BVHError(f"more than {MAX_JOINTS} joints", self.label, line)
+        if name in self.name_lines:
+            raise BVHError(f"duplicate joint name '{name}' (first at line {self.name_lines[name]})", self.label, line)
+        if name in ("{", "}"):
+            raise BVHError("a joint name is missing", self.label, line)
+        index = len(self.names)
+        self.names.append(name)
+        self.name_lines[name] = line
+        self.parents.append(parent)
+        open_line = self.t.expect("{", f"after joint '{name}'")
+        self.offsets.append(self._offset(f"joint '{name}'"))
+        self.channels.append(self._channels(name))
+        while True:
+            tok, tok_line = self.t.peek()
+            if tok is None:
+                raise BVHError(
+                    f"unbalanced braces: joint '{name}' opened at line {open_line} is never closed", self.label, tok_line
+                )
+            self.t.pos += 1
+            if tok == "}":
+                return
+            if tok.upper() == "JOINT":
+                self._joint(index, depth + 1)
+            elif tok.upper() == "END":
+                self._end_site(index, name)
+            else:
+                raise BVHError(f"unexpected '{tok}' inside joint '{name}'", self.label, tok_line)
+
+    def _end_site(self, index: int, name: str) -> None:
+        self.t.expect("Site", f"after 'End' in joint '{name}'")
+        self.t.expect("{", f"after 'End Site' of joint '{name}'")
+        self.end_sites[index] = np.array(self._offset(f"End Site of joint '{name}'"))
+        self.t.expect("}", f"to close the End Site of joint '{name}'")
+
+
+# ---------------------------------------------------------------------------------------------
+# MOTION
+
+
+def _find_motion_line(lines: list[str]) -> int | None:
+    for i, text in enumerate(lines):
+        if text.strip().upper() == "MOTION":
+            return i
+    return None
+
+
+def _motion_header(lines: list[str], start: int, label: str) -> tuple[int, float, int]:
+    """Parse 'Frames:' and 'Frame Time:' after MOTION; return (frames, frame_time, first data line index)."""
+    i = start + 1
+    header = []
+    while len(header) < 2:
+        while i < len(lines) and not lines[i].strip():
+            i += 1
+        if i >= len(lines):
+            missing = "Frames:" if not header else "Frame Time:"
+            raise BVHError(f"the motion header is truncated: '{missing}' is missing", label, len(lines))
+        header.append((lines[i].split(), i + 1))
+        i += 1
+    (frames_tok, frames_line), (time_tok, time_line) = header
+    if len(frames_tok) != 2 or frames_tok[0].lower() != "frames:":
+        raise BVHError(f"expected 'Frames: <count>', found '{' '.join(frames_tok)}'", label, frames_line)
+    if not re.fullmatch(r"[+-]?\d+", frames_tok[1]):
+        raise BVHError(f"the frame count '{frames_tok[1]}' is not a whole number", label, frames_line)
+    frames = int(frames_tok[1])
+    if frames <= 0:
+        raise BVHError(f"the file has {frames} frames; at least one is needed", label, frames_line)
+    if len(time_tok) != 3 or time_tok[0].lower() != "frame" or time_tok[1].lower() != "time:":
+        raise BVHError(f"expected 'Frame Time: <seconds>', found '{' '.join(time_tok)}'", label, time_line)
+    frame_time = _number(time_tok[2], label, time_line, "Frame Time")
+    if frame_time <= 0:
+        raise BVHError(f"Frame Time must be positive, found {time_tok[2]}", label, time_line)
+    return frames, frame_time, i
+
+
+def _motion_values(lines: list[str], first: int, frames: int, columns: int, frames_line: int, label: str) -> np.ndarray:
+    """The (frames, columns) block, vectorised; on any mismatch a per-line pass names the line."""
+    numbered = [(n, text) for n, text in enumerate(lines[first:], first + 1) if text.strip()]
+    if len(numbered) > frames:
+        raise BVHError(
+            f"'Frames: {frames}' (line {frames_line}) but more frame lines follow; the first extra one is here",
+            label,
+            numbered[frames][0],
+        )
+    values = np.fromstring(" ".join(text for _, text in numbered), dtype=np.float64, sep=" ") if numbered else np.empty(0)
+    if values.size == len(numbered) * columns:
+        values = values.reshape(len(numbered), columns)
+        if _line_counts_match(numbered, columns):
+            bad = np.flatnonzero(~np.isfinite(values).all(axis=1))
+            if bad.size:
+                row = int(bad[0])
+                col = int(np.flatnonzero(~np.isfinite(values[row]))[0])
+                raise BVHError(f"value {col + 1} is not a finite number ({values[row, col]})", label, numbered[row][0])
+            if len(numbered) < frames:
+                last = numbered[-1][0] if numbered else frames_line
+                raise BVHError(
+                    f"the motion is truncated: 'Frames: {frames}' (line {frames_line}) but only {len(numbered)} frame lines",
+                    label,
+                    last,
+                )
+            return values
+    _locate_motion_error(numbered, columns, label)
+    raise AssertionError("a motion block that fails the fast checks has a line at fault")
+
+
+def _line_counts_match(numbered: list[tuple[int, str]], columns: int) -> bool:
+    """Exact per-line token count, vectorised over the whole block's bytes."""
+    blob = np.frombuffer("\n".join(text for _, text in numbered).encode(), dtype=np.uint8)
+    space = blob <= 32  # ASCII whitespace and control bytes separate tokens, as str.split does
+    starts = np.flatnonzero(~space & np.concatenate([[True], space[:-1]]))
+    bounds = np.concatenate([[0], np.flatnonzero(blob == 10) + 1, [blob.size]])
+    counts = np.diff(np.searchsorted(starts, bounds))
+    return bool(np.all(counts == columns))
+
+
+def _locate_motion_error(numbered: list[tuple[int, str]], columns: int, label: str) -> None:
+    for line, text in numbered:
+        tokens = text.split()
+        if len(tokens) != columns:
+            raise BVHError(f"expected {columns} values (one per channel), found {len(tokens)}", label, line)
+        for k, tok in enumerate(tokens):
+            _number(tok, label, line, f"value {k + 1}")
+
+
+# ---------------------------------------------------------------------------------------------
+# Public API
+
+
+def parse_bvh(source: str | Path | bytes, name: str | None = None) -> BVHData:
+    """Check and parse a BVH file (path or bytes) without converting units or axes."""
+    label, text = _read_source(source, name)
+    lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+    motion_at = _find_motion_line(lines)
+    hierarchy_lines = lines if motion_at is None else lines[:motion_at]
+    end_line = len(lines) if motion_at is None else motion_at + 1
+    parser = _HierarchyParser(_Tokens(hierarchy_lines, label, end_line))
+    parser.parse()
+    if motion_at is None:
+        raise BVHError("the MOTION section is missing", label, len(lines))
+    frames, frame_time, first = _motion_header(lines, motion_at, label)
+    frames_line = next(n for n in range(motion_at + 2, len(lines) + 1) if lines[n - 1].strip())
+    values = _motion_values(lines, first, frames, parser.columns, frames_line, label)
+    return BVHData(
+        path=label,
+        names=parser.names,
+        parents=parser.parents,
+        offsets=np.array(parser.offsets, dtype=float),
+        end_sites=parser.end_sites,
+        channels=parser.channels,
+        frame_time=frame_time,
+        values=values,
+    )
+
+
+def unit_scale(data: BVHData, unit: str | float = "auto") -> float:
+    """Metres per file unit: given by name or number, or guessed from the rest pose's size.
+
+    The guess takes the unit that makes the rest pose's largest extent (about body height, or arm
+    span in a T-pose) closest to 1.75 m on a log scale.
+    """
+    if not isinstance(unit, str):
+        if not unit > 0:
+            raise BVHError(f"unit scale must be positive, got {unit}", data.path)
+        return float(unit)
+    if unit != "auto":
+        if unit not in UNITS:
+            raise BVHError(f"unknown unit '{unit}'; use one of {', '.join(UNITS)} or a number", data.path)
+        return UNITS[unit]
+    extent = Skeleton(data.names, data.parents, data.offsets, dict(data.end_sites)).rest_extent()
+    if extent <= 0:
+        raise BVHError("every OFFSET is zero, so the units cannot be guessed; give the unit", data.path)
+    return min(UNITS.values(), key=lambda s: abs(np.log(extent * s / TYPICAL_HEIGHT_M)))
+
+
+def to_motion(data: BVHData, unit: str | float = "auto", up: str = "Y") -> Motion:
+    """Convert a parsed file to metres, Z up, quaternions."""
+    if up.upper() not in ("Y", "Z"):
+        raise BVHError(f"up axis must be 'Y' or 'Z', got '{up}'", data.path)
+    scale = unit_scale(data, unit)
+    axis_q = _Y_TO_Z if up.upper() == "Y" else quat.identity()
+    count, frames = len(data.names), data.num_frames
+    offsets = data.offsets * scale
+    local_rot = quat.identity((frames, count))
+    positions = np.broadcast_to(offsets, (frames, count, 3)).copy()
+    animated_pos = False
+    for j, ch in enumerate(data.channels):
+        if ch.position:
+            positions[:, j] = 0.0
+            positions[:, j, ch.position] = data.values[:, ch.position_columns] * scale
+            animated_pos = animated_pos or j > 0
+    # Rotations: one vectorised conversion per distinct rotation order (usually one for all joints).
+    for order in {ch.rotation for ch in data.channels if ch.rotation}:
+        joints = [j for j, ch in enumerate(data.channels) if ch.rotation == order]
+        columns = [data.channels[j].rotation_columns for j in joints]
+        local_rot[:, joints] = quat.from_euler(np.radians(data.values[:, columns]), order)
+    # Change of axes: conjugate rotations, rotate vectors.
+    local_rot = quat.mul(quat.mul(axis_q, local_rot), quat.conj(axis_q))
+    positions = quat.rotate(axis_q, positions)
+    end_sites = {j: quat.rotate(axis_q, off * scale) for j, off in data.end_sites.items()}
+    skeleton = Skeleton(data.names, data.parents, quat.rotate(axis_q, offsets), end_sites)
+    return Motion(
+        skeleton=skeleton,
+        fps=1.0 / data.frame_time,
+        root_pos=positions[:, 0].copy(),
+        local_rot=quat.normalize(local_rot),
+        local_pos=positions if animated_pos else None,
+    )
+
+
+def read_bvh(path: str | Path, unit: str | float = "auto", up: str = "Y") -> Motion:
+    """Read a BVH file into a Motion in metres, Z up (see `to_motion`)."""
+    return to_motion(parse_bvh(path), unit=unit, up=up)
+
+
+# ---------------------------------------------------------------------------------------------
+# Writer
+
+
+def format_bvh(
+    motion: Motion, rotation_order: str = "ZXY", unit: str | float = "cm", up: str = "Y", decimals: int = 6
+) -> str:
+    """BVH text for a Motion: root with 6 channels, other joints 3 (6 when the motion has local_pos).
+
+    Written in the given unit (default centimetres) and up axis (default Y), the common BVH dialect.
+    """
+    if up.upper() not in ("Y", "Z"):
+        raise BVHError(f"up axis must be 'Y' or 'Z', got '{up}'")
+    scale = UNITS[unit] if isinstance(unit, str) else float(unit)
+    to_file = quat.conj(_Y_TO_Z) if up.upper() == "Y" else quat.identity()
+    sk = motion.skeleton
+    order = rotation_order.upper()
+    quat._axis_index(order)
+    rot_names = " ".join(f"{c}rotation" for c in order)
+
+    def vec(v: np.ndarray) -> np.ndarray:
+        return quat.rotate(to_file, v) / scale
+
+    lines = ["HIERARCHY"]
+    with_pos = motion.local_pos is not None
+
+    def joint(j: int, depth: int) -> None:
+        pad = "\t" * depth
+        keyword = "ROOT" if j == 0 else "JOINT"
+        lines.append(f"{pad}{keyword} {sk.names[j]}")
+        lines.append(f"{pad}{{")
+        off = vec(sk.offsets[j])
+        lines.append(f"{pad}\tOFFSET {off[0]:.{decimals}f} {off[1]:.{decimals}f} {off[2]:.{decimals}f}")
+        if j == 0 or with_pos:
+            lines.append(f"{pad}\tCHANNELS 6 Xposition Yposition Zposition {rot_names}")
+        else:
+            lines.append(f"{pad}\tCHANNELS 3 {rot_names}")
+        for c in sk.children(j):
+            joint(c, depth + 1)
+        if j in sk.end_sites:
+            tip = vec(sk.end_sites[j])
+            lines.extend([f"{pad}\tEnd Site", f"{pad}\t{{", f"{pad}\t\tOFFSET {tip[0]:.{decimals}f} {tip[1]:.{decimals}f} {tip[2]:.{decimals}f}", f"{pad}\t}}"])
+        lines.append(f"{pad}}}")
+
+    joint(0, 0)
+    # Motion block: per joint [positions] + rotations, vectorised over frames.
+    local_rot = quat.mul(quat.mul(to_file, motion.local_rot), quat.conj(to_file))
+    euler = np.degrees(quat.to_euler(local_rot, order))  # (T, J, 3)
+    offsets = vec(motion.joint_offsets())
+    offsets[:, 0] = vec(motion.root_pos)
+    columns = []
+    for j in range(sk.num_joints):
+        if j == 0 or with_pos:
+            columns.append(offsets[:, j])
+        columns.append(euler[:, j])
+    block = np.concatenate(columns, axis=1)
+    block[np.abs(block) < 0.5 * 10.0**-decimals] = 0.0  # no "-0.000000"
+    lines += ["MOTION", f"Frames: {motion.num_frames}", f"Frame Time: {motion.frame_time:.9g}"]
+    fmt = " ".join([f"%.{decimals}f"] * block.shape[1])
+    lines += [fmt % tuple(row) for row in block]
+    return "\n".join(lines) + "\n"
+
+
+def write_bvh(path: str | Path, motion: Motion, **options) -> None:
+    """Write a Motion as a BVH file; options as `format_bvh`."""
+    Path(path).write_text(format_bvh(motion, **options), encoding="utf-8", newline="\n")

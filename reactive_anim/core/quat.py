@@ -1,0 +1,176 @@
+"""Vectorised quaternion math, (w, x, y, z) order as in Blender's mathutils and MuJoCo.
+
+Every function takes arrays of any leading shape: `(..., 4)` quaternions, `(..., 3)` vectors.
+Euler angles follow the BVH convention: the channel order "ZXY" means R = Rz @ Rx @ Ry, i.e.
+intrinsic rotations applied left to right, and vectors are column vectors.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+AXES = "XYZ"
+_EPS = 1e-12
+
+
+def identity(shape: tuple[int, ...] = ()) -> np.ndarray:
+    """Identity rotations of the given leading shape: `shape + (4,)`."""
+    q = np.zeros(tuple(shape) + (4,))
+    q[..., 0] = 1.0
+    return q
+
+
+def normalize(q: np.ndarray) -> np.ndarray:
+    """Unit quaternions; a zero quaternion stays zero rather than becoming NaN."""
+    q = np.asarray(q, dtype=float)
+    n = np.linalg.norm(q, axis=-1, keepdims=True)
+    return q / np.maximum(n, _EPS)
+
+
+def mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton product a*b (apply b first, then a), broadcast over leading axes."""
+    aw, ax, ay, az = np.moveaxis(np.asarray(a, dtype=float), -1, 0)
+    bw, bx, by, bz = np.moveaxis(np.asarray(b, dtype=float), -1, 0)
+    return np.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        axis=-1,
+    )
+
+
+def conj(q: np.ndarray) -> np.ndarray:
+    """Conjugate, the inverse of a unit quaternion."""
+    q = np.asarray(q, dtype=float)
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vectors `(..., 3)` by unit quaternions `(..., 4)`."""
+    q = np.asarray(q, dtype=float)
+    v = np.asarray(v, dtype=float)
+    w = q[..., :1]
+    u = q[..., 1:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def from_axis_angle(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rotation by `angle` radians `(...)` about unit `axis` `(..., 3)`."""
+    axis = np.asarray(axis, dtype=float)
+    half = 0.5 * np.asarray(angle, dtype=float)[..., None]
+    return np.concatenate([np.cos(half), np.sin(half) * axis], axis=-1)
+
+
+def _axis_index(order: str) -> list[int]:
+    idx = [AXES.index(c) for c in order.upper()]
+    if sorted(idx) != [0, 1, 2]:
+        raise ValueError(f"rotation order must be a permutation of XYZ, got {order!r}")
+    return idx
+
+
+def from_euler(angles: np.ndarray, order: str) -> np.ndarray:
+    """Quaternions from Euler angles in radians `(..., len(order))`, composed left to right.
+
+    `order` may name one to three distinct axes (a BVH joint may animate fewer than three).
+    """
+    angles = np.asarray(angles, dtype=float)
+    q = identity(angles.shape[:-1])
+    for k, axis_name in enumerate(order.upper()):
+        axis = np.zeros(3)
+        axis[AXES.index(axis_name)] = 1.0
+        q = mul(q, from_axis_angle(axis, angles[..., k]))
+    return q
+
+
+def to_euler(q: np.ndarray, order: str) -> np.ndarray:
+    """Euler angles in radians `(..., 3)` for a permutation of XYZ, inverse of `from_euler`."""
+    i, j, k = _axis_index(order)
+    m = to_matrix(q)
+    s = 1.0 if (j - i) % 3 == 1 else -1.0  # even (cyclic) or odd permutation
+    # atan2 rather than arcsin: keeps full precision near +-90 degrees.
+    middle = np.arctan2(s * m[..., i, k], np.hypot(m[..., i, i], m[..., i, j]))
+    first = np.arctan2(-s * m[..., j, k], m[..., k, k])
+    last = np.arctan2(-s * m[..., i, j], m[..., i, i])
+    # At gimbal lock the first and last angles share one degree of freedom; put it all in first.
+    locked = np.abs(s * m[..., i, k]) > 1.0 - 1e-9
+    if np.any(locked):
+        alt = np.arctan2(s * m[..., k, j], m[..., j, j])
+        first = np.where(locked, alt, first)
+        last = np.where(locked, 0.0, last)
+    return np.stack([first, middle, last], axis=-1)
+
+
+def to_matrix(q: np.ndarray) -> np.ndarray:
+    """Rotation matrices `(..., 3, 3)` of unit quaternions."""
+    w, x, y, z = np.moveaxis(normalize(q), -1, 0)
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        axis=-2,
+    )
+
+
+def from_matrix(m: np.ndarray) -> np.ndarray:
+    """Unit quaternions (w >= 0) of rotation matrices `(..., 3, 3)`, stable for every angle."""
+    m = np.asarray(m, dtype=float)
+    trace = m[..., 0, 0] + m[..., 1, 1] + m[..., 2, 2]
+    # Four candidate formulas; use the one with the largest pivot for numerical stability.
+    cands = np.stack(
+        [
+            np.stack([1 + trace, m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]], -1),
+            np.stack([m[..., 2, 1] - m[..., 1, 2], 1 + m[..., 0, 0] - m[..., 1, 1] - m[..., 2, 2], m[..., 0, 1] + m[..., 1, 0], m[..., 0, 2] + m[..., 2, 0]], -1),
+            np.stack([m[..., 0, 2] - m[..., 2, 0], m[..., 0, 1] + m[..., 1, 0], 1 - m[..., 0, 0] + m[..., 1, 1] - m[..., 2, 2], m[..., 1, 2] + m[..., 2, 1]], -1),
+            np.stack([m[..., 1, 0] - m[..., 0, 1], m[..., 0, 2] + m[..., 2, 0], m[..., 1, 2] + m[..., 2, 1], 1 - m[..., 0, 0] - m[..., 1, 1] + m[..., 2, 2]], -1),
+        ],
+        axis=-2,
+    )
+    pivots = np.stack([trace, m[..., 0, 0], m[..., 1, 1], m[..., 2, 2]], -1)
+    best = np.argmax(pivots, axis=-1)
+    q = np.take_along_axis(cands, best[..., None, None], axis=-2)[..., 0, :]
+    q = normalize(q)
+    return np.where(q[..., :1] < 0, -q, q)
+
+
+def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rotation angle in radians of a^-1 b, in [0, pi]; q and -q count as the same rotation."""
+    d = mul(conj(a), b)
+    return 2.0 * np.arctan2(np.linalg.norm(d[..., 1:], axis=-1), np.abs(d[..., 0]))
+
+
+def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Spherical interpolation along the shorter arc; `t` broadcasts against `(...)`."""
+    a = normalize(a)
+    b = normalize(b)
+    t = np.asarray(t, dtype=float)[..., None]
+    dot = np.sum(a * b, axis=-1, keepdims=True)
+    b = np.where(dot < 0, -b, b)
+    dot = np.abs(dot)
+    theta = np.arccos(np.clip(dot, -1.0, 1.0))
+    sin_theta = np.sin(theta)
+    near = sin_theta < 1e-6
+    safe = np.where(near, 1.0, sin_theta)
+    wa = np.where(near, 1.0 - t, np.sin((1.0 - t) * theta) / safe)
+    wb = np.where(near, t, np.sin(t * theta) / safe)
+    return normalize(wa * a + wb * b)
+
+
+def make_continuous(q: np.ndarray) -> np.ndarray:
+    """Flip signs along axis 0 (time) so consecutive quaternions lie in the same hemisphere.
+
+    Keyframe curves interpolate components linearly; without this a q / -q jump would make a bone
+    spin the long way round between two frames.
+    """
+    q = np.array(q, dtype=float, copy=True)
+    if len(q) < 2:
+        return q
+    dots = np.sum(q[1:] * q[:-1], axis=-1)
+    flips = np.cumsum(dots < 0, axis=0) % 2 == 1
+    q[1:][flips] *= -1.0
+    return q

@@ -1,0 +1,185 @@
+"""Skeleton (joint hierarchy and rest offsets), Motion (per-frame joint rotations) and forward kinematics.
+
+Conventions (DESIGN.md): metres, Z up, quaternions (w, x, y, z). The rest pose has every joint
+rotation equal to identity, so rest offsets are expressed in world axes, as in BVH. A joint's local
+rotation is relative to its parent's frame; the global rotation of joint j is the product of the
+local rotations from the root down to j.
+
+One addition to the design's Motion: `local_pos`, per-frame translations of every joint relative to
+its parent. Most mocap animates only the root's position, but some files (the Bandai Namco set)
+animate every joint's; without it those files would not match what Blender shows.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from . import quat
+from .errors import SkeletonError
+
+
+@dataclass
+class Skeleton:
+    """Joint names, parent indices (root first, parents before children) and rest offsets (J, 3).
+
+    `end_sites` maps a joint index to the offset of its BVH End Site (the tip of a leaf bone).
+    `roles` maps a paper joint role ("hip_l", "knee_r", ...) to a joint name; see roles.py.
+    """
+
+    names: list[str]
+    parents: np.ndarray
+    offsets: np.ndarray
+    end_sites: dict[int, np.ndarray] = field(default_factory=dict)
+    roles: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.names = list(self.names)
+        self.parents = np.asarray(self.parents, dtype=np.int64)
+        self.offsets = np.asarray(self.offsets, dtype=float).reshape(-1, 3)
+        count = len(self.names)
+        if count == 0:
+            raise SkeletonError("a skeleton needs at least one joint")
+        if self.parents.shape != (count,) or self.offsets.shape != (count, 3):
+            raise SkeletonError(
+                f"skeleton arrays disagree: {count} names, parents {self.parents.shape}, offsets {self.offsets.shape}"
+            )
+        if len(set(self.names)) != count:
+            dupes = sorted({n for n in self.names if self.names.count(n) > 1})
+            raise SkeletonError(f"duplicate joint names: {', '.join(dupes)}")
+        if self.parents[0] != -1 or np.any(self.parents[1:] < 0) or np.any(self.parents[1:] >= np.arange(1, count)):
+            raise SkeletonError("joints must be ordered root first, each parent before its children")
+
+    @property
+    def num_joints(self) -> int:
+        return len(self.names)
+
+    def index(self, name: str) -> int:
+        """Index of the joint called `name`; the error lists the joints that do exist."""
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise SkeletonError(
+                f"the skeleton has no joint '{name}'; its joints are: {', '.join(self.names)}"
+            ) from None
+
+    def children(self, joint: int) -> list[int]:
+        return [int(c) for c in np.flatnonzero(self.parents == joint)]
+
+    def rest_positions(self) -> np.ndarray:
+        """World positions of every joint in the rest pose, (J, 3)."""
+        pos = np.zeros((self.num_joints, 3))
+        pos[0] = self.offsets[0]
+        for j in range(1, self.num_joints):
+            pos[j] = pos[self.parents[j]] + self.offsets[j]
+        return pos
+
+    def rest_extent(self) -> float:
+        """Largest side of the rest pose's bounding box, end sites included (about body height)."""
+        pos = self.rest_positions()
+        tips = [pos[j] + off for j, off in self.end_sites.items()]
+        pts = np.vstack([pos] + tips) if tips else pos
+        return float(np.max(pts.max(axis=0) - pts.min(axis=0)))
+
+
+@dataclass
+class Motion:
+    """Per-frame pose of a skeleton.
+
+    root_pos: (T, 3) world position of the root joint, metres.
+    local_rot: (T, J, 4) unit quaternions, each joint relative to its parent, rest pose = identity.
+    local_pos: (T, J, 3) joint translations relative to the parent, or None to use the rest
+      offsets (row 0, the root, is ignored: root_pos holds it).
+    """
+
+    skeleton: Skeleton
+    fps: float
+    root_pos: np.ndarray
+    local_rot: np.ndarray
+    local_pos: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        self.root_pos = np.asarray(self.root_pos, dtype=float)
+        self.local_rot = np.asarray(self.local_rot, dtype=float)
+        frames = self.root_pos.shape[0]
+        count = self.skeleton.num_joints
+        if self.root_pos.shape != (frames, 3) or self.local_rot.shape != (frames, count, 4):
+            raise SkeletonError(
+                f"motion arrays do not fit a {count}-joint skeleton: root_pos {self.root_pos.shape}, "
+                f"local_rot {self.local_rot.shape}"
+            )
+        if self.local_pos is not None:
+            self.local_pos = np.asarray(self.local_pos, dtype=float)
+            if self.local_pos.shape != (frames, count, 3):
+                raise SkeletonError(f"local_pos has shape {self.local_pos.shape}, expected {(frames, count, 3)}")
+        if not self.fps > 0:
+            raise SkeletonError(f"frames per second must be positive, got {self.fps}")
+
+    @property
+    def num_frames(self) -> int:
+        return self.root_pos.shape[0]
+
+    @property
+    def frame_time(self) -> float:
+        return 1.0 / self.fps
+
+    def joint_offsets(self) -> np.ndarray:
+        """Per-frame parent-relative translations (T, J, 3): local_pos or the rest offsets."""
+        if self.local_pos is not None:
+            return self.local_pos
+        return np.broadcast_to(self.skeleton.offsets, (self.num_frames,) + self.skeleton.offsets.shape)
+
+    def global_transforms(self) -> tuple[np.ndarray, np.ndarray]:
+        """World joint positions (T, J, 3) and rotations (T, J, 4) by forward kinematics."""
+        return forward_kinematics(self.skeleton, self.root_pos, self.local_rot, self.joint_offsets())
+
+    def global_positions(self) -> np.ndarray:
+        return self.global_transforms()[0]
+
+    def global_rotations(self) -> np.ndarray:
+        return self.global_transforms()[1]
+
+    def slice(self, start: int, stop: int) -> Motion:
+        """Frames [start, stop) as a new Motion sharing the skeleton."""
+        local_pos = None if self.local_pos is None else self.local_pos[start:stop].copy()
+        return replace(
+            self,
+            root_pos=self.root_pos[start:stop].copy(),
+            local_rot=self.local_rot[start:stop].copy(),
+            local_pos=local_pos,
+        )
+
+    def concat(self, other: Motion) -> Motion:
+        """This motion followed by `other` (same skeleton and frame rate)."""
+        if other.skeleton.names != self.skeleton.names or not np.isclose(other.fps, self.fps):
+            raise SkeletonError("can only join motions of the same skeleton and frame rate")
+        local_pos = None
+        if self.local_pos is not None or other.local_pos is not None:
+            local_pos = np.concatenate([self.joint_offsets(), other.joint_offsets()])
+        return replace(
+            self,
+            root_pos=np.concatenate([self.root_pos, other.root_pos]),
+            local_rot=np.concatenate([self.local_rot, other.local_rot]),
+            local_pos=local_pos,
+        )
+
+
+def forward_kinematics(
+    skeleton: Skeleton, root_pos: np.ndarray, local_rot: np.ndarray, offsets: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Global positions (T, J, 3) and rotations (T, J, 4), vectorised over frames.
+
+    offsets: (T, J, 3) or (J, 3) parent-relative translations; the root's row is ignored.
+    """
+    frames, count = local_rot.shape[:2]
+    offsets = np.broadcast_to(offsets, (frames, count, 3))
+    pos = np.empty((frames, count, 3))
+    rot = np.empty((frames, count, 4))
+    pos[:, 0] = root_pos
+    rot[:, 0] = local_rot[:, 0]
+    for j in range(1, count):
+        p = skeleton.parents[j]
+        pos[:, j] = pos[:, p] + quat.rotate(rot[:, p], offsets[:, j])
+        rot[:, j] = quat.mul(rot[:, p], local_rot[:, j])
+    return pos, rot
