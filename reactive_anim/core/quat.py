@@ -87,20 +87,21 @@ def from_euler(angles: np.ndarray, order: str) -> np.ndarray:
 
 
 def to_euler(q: np.ndarray, order: str) -> np.ndarray:
-    """Euler angles in radians `(..., 3)` for a permutation of XYZ, inverse of `from_euler`."""
+    """Euler angles in radians `(..., 3)` for a permutation of XYZ, inverse of `from_euler`.
+
+    The last angle is taken from what the first two leave over, so the three angles always
+    rebuild the rotation exactly, gimbal lock included (where the first absorbs the shared freedom).
+    """
     i, j, k = _axis_index(order)
     m = to_matrix(q)
     s = 1.0 if (j - i) % 3 == 1 else -1.0  # even (cyclic) or odd permutation
-    # atan2 rather than arcsin: keeps full precision near +-90 degrees.
     middle = np.arctan2(s * m[..., i, k], np.hypot(m[..., i, i], m[..., i, j]))
-    first = np.arctan2(-s * m[..., j, k], m[..., k, k])
-    last = np.arctan2(-s * m[..., i, j], m[..., i, i])
-    # At gimbal lock the first and last angles share one degree of freedom; put it all in first.
-    locked = np.abs(s * m[..., i, k]) > 1.0 - 1e-9
-    if np.any(locked):
-        alt = np.arctan2(s * m[..., k, j], m[..., j, j])
-        first = np.where(locked, alt, first)
-        last = np.where(locked, 0.0, last)
+    locked = np.hypot(m[..., j, k], m[..., k, k]) < 1e-12
+    first = np.where(locked, 0.0, np.arctan2(-s * m[..., j, k], m[..., k, k]))
+    axes = np.eye(3)
+    done = mul(from_axis_angle(axes[i], first), from_axis_angle(axes[j], middle))
+    rest = to_matrix(mul(conj(done), q))
+    last = np.arctan2(rest[..., (k + 2) % 3, (k + 1) % 3], rest[..., (k + 1) % 3, (k + 1) % 3])
     return np.stack([first, middle, last], axis=-1)
 
 

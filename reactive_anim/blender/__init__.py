@@ -1,0 +1,1 @@
+"""The Blender layer (bpy, main thread only). See README.md here."""
