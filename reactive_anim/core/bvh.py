@@ -35,6 +35,11 @@ UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254, "cmu": 0.0254 / 0.45}
 TYPICAL_HEIGHT_M = 1.75
 _POSITION = {"xposition": 0, "yposition": 1, "zposition": 2}
 _ROTATION = {"xrotation": "X", "yrotation": "Y", "zrotation": "Z"}
+# A number as BVH writes it (ASCII digits, optional exponent; nan/inf are caught as not finite). Python's
+# float() alone would also take "1_0" or non-ASCII digits, which the vectorised motion pass does not.
+_NUMBER = re.compile(r"[+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|nan|inf|infinity)", re.IGNORECASE)
+# The separators of numbers on a motion line (what both str.split and numpy take as whitespace).
+_SPACES = re.compile(r"[ \t\v\f]+")
 # +90 degrees about X: turns a Y-up file Z-up.
 _Y_TO_Z = quat.from_axis_angle(np.array([1.0, 0.0, 0.0]), np.pi / 2)
 
@@ -86,24 +91,27 @@ def _read_source(source: str | Path | bytes, name: str | None) -> tuple[str, str
             raw = Path(source).read_bytes()
         except OSError as exc:
             raise BVHError(f"cannot read the file ({exc.strerror or exc})", label) from None
-    if not raw.strip():
-        raise BVHError("the file is empty", label, 1)
     nul = raw.find(b"\x00")
     if nul >= 0:
-        raise BVHError("binary data (NUL byte), not a BVH text file", label, raw.count(b"\n", 0, nul) + 1)
+        raise BVHError("binary data (NUL byte), not a BVH text file", label, _line_at(raw, nul))
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        line = raw.count(b"\n", 0, exc.start) + 1
-        raise BVHError("not UTF-8 text (binary or another encoding)", label, line) from None
+        raise BVHError("not UTF-8 text (binary or another encoding)", label, _line_at(raw, exc.start)) from None
+    if not text.strip():
+        raise BVHError("the file is empty", label, 1)
     return label, text
 
 
+def _line_at(raw: bytes, offset: int) -> int:
+    """1-based line of a byte offset, counting CRLF, CR and LF line ends as the text split does."""
+    return raw[:offset].replace(b"\r\n", b"\n").replace(b"\r", b"\n").count(b"\n") + 1
+
+
 def _number(token: str, label: str, line: int, what: str) -> float:
-    try:
-        value = float(token)
-    except ValueError:
-        raise BVHError(f"{what}: '{token}' is not a number", label, line) from None
+    if not _NUMBER.fullmatch(token):
+        raise BVHError(f"{what}: '{token}' is not a number", label, line)
+    value = float(token)
     if not np.isfinite(value):
         raise BVHError(f"{what}: '{token}' is not a finite number", label, line)
     return value
@@ -155,8 +163,8 @@ class _HierarchyParser:
 
     def parse(self) -> None:
         self.t.expect("HIERARCHY", "at the start of the file")
-        self.t.expect("ROOT", "after HIERARCHY")
-        self._joint(parent=-1, depth=0)
+        root_line = self.t.expect("ROOT", "after HIERARCHY")
+        self._joint(parent=-1, depth=0, keyword_line=root_line)
         if self.columns == 0:
             raise BVHError("no joint has CHANNELS, so there is no motion to read", self.label, self.t.end_line)
         tok, line = self.t.peek()
@@ -166,19 +174,21 @@ class _HierarchyParser:
             raise BVHError(f"unexpected '{tok}' after the root joint (only one ROOT is supported)", self.label, line)
 
     def _offset(self, context: str) -> tuple[float, float, float]:
-        line = self.t.expect("OFFSET", context)
+        line = self.t.expect("OFFSET", f"in {context}")
         vals = []
         for _ in range(3):
             tok, tok_line = self.t.take(f"OFFSET needs 3 numbers ({context})")
             if tok_line != line:
                 raise BVHError(f"OFFSET needs 3 numbers on its line ({context})", self.label, line)
             vals.append(_number(tok, self.label, line, "OFFSET"))
+        if self.t.peek()[1] == line and self.t.peek()[0] is not None:
+            raise BVHError(f"OFFSET has more than 3 numbers ({context})", self.label, line)
         return vals[0], vals[1], vals[2]
 
     def _channels(self, joint: str) -> Channels:
         line = self.t.expect("CHANNELS", f"after the OFFSET of joint '{joint}'")
         tok, _ = self.t.take(f"CHANNELS of joint '{joint}'")
-        if not tok.isdigit() or int(tok) > 6:
+        if not re.fullmatch(r"[0-9]+", tok) or int(tok) > 6:
             raise BVHError(f"CHANNELS count of joint '{joint}' must be 0 to 6, found '{tok}'", self.label, line)
         spec = Channels()
         for column in range(self.columns, self.columns + int(tok)):
@@ -202,16 +212,16 @@ class _HierarchyParser:
         self.columns += spec.count
         return spec
 
-    def _joint(self, parent: int, depth: int) -> None:
+    def _joint(self, parent: int, depth: int, keyword_line: int) -> None:
         name, line = self.t.take("a joint name is missing")
+        if name in ("{", "}"):
+            raise BVHError("a joint name is missing", self.label, keyword_line)
         if depth > MAX_DEPTH:
             raise BVHError(f"joints nested more than {MAX_DEPTH} deep", self.label, line)
         if len(self.names) >= MAX_JOINTS:
             raise BVHError(f"more than {MAX_JOINTS} joints", self.label, line)
         if name in self.name_lines:
             raise BVHError(f"duplicate joint name '{name}' (first at line {self.name_lines[name]})", self.label, line)
-        if name in ("{", "}"):
-            raise BVHError("a joint name is missing", self.label, line)
         index = len(self.names)
         self.names.append(name)
         self.name_lines[name] = line
@@ -229,7 +239,7 @@ class _HierarchyParser:
             if tok == "}":
                 return
             if tok.upper() == "JOINT":
-                self._joint(index, depth + 1)
+                self._joint(index, depth + 1, tok_line)
             elif tok.upper() == "END":
                 self._end_site(index, name)
             else:
@@ -262,13 +272,14 @@ def _motion_header(lines: list[str], start: int, label: str) -> tuple[int, float
             i += 1
         if i >= len(lines):
             missing = "Frames:" if not header else "Frame Time:"
-            raise BVHError(f"the motion header is truncated: '{missing}' is missing", label, len(lines))
+            last = header[-1][1] if header else start + 1
+            raise BVHError(f"the motion header is truncated: '{missing}' is missing", label, last)
         header.append((lines[i].split(), i + 1))
         i += 1
     (frames_tok, frames_line), (time_tok, time_line) = header
     if len(frames_tok) != 2 or frames_tok[0].lower() != "frames:":
         raise BVHError(f"expected 'Frames: <count>', found '{' '.join(frames_tok)}'", label, frames_line)
-    if not re.fullmatch(r"[+-]?\d+", frames_tok[1]):
+    if not re.fullmatch(r"[+-]?[0-9]+", frames_tok[1]):
         raise BVHError(f"the frame count '{frames_tok[1]}' is not a whole number", label, frames_line)
     frames = int(frames_tok[1])
     if frames <= 0:
@@ -308,7 +319,7 @@ def _motion_values(lines: list[str], first: int, frames: int, columns: int, fram
                 )
             return values
     _locate_motion_error(numbered, columns, label)
-    raise AssertionError("a motion block that fails the fast checks has a line at fault")
+    raise BVHError("the motion block cannot be read as numbers", label, numbered[0][0] if numbered else frames_line)
 
 
 def _fast_floats(text: str) -> np.ndarray:
@@ -323,6 +334,8 @@ def _fast_floats(text: str) -> np.ndarray:
 
 def _line_counts_match(numbered: list[tuple[int, str]], columns: int) -> bool:
     """Exact per-line token count, vectorised over the whole block's bytes."""
+    if not numbered:
+        return True
     blob = np.frombuffer("\n".join(text for _, text in numbered).encode(), dtype=np.uint8)
     space = blob <= 32  # ASCII whitespace and control bytes separate tokens, as str.split does
     starts = np.flatnonzero(~space & np.concatenate([[True], space[:-1]]))
@@ -333,7 +346,7 @@ def _line_counts_match(numbered: list[tuple[int, str]], columns: int) -> bool:
 
 def _locate_motion_error(numbered: list[tuple[int, str]], columns: int, label: str) -> None:
     for line, text in numbered:
-        tokens = text.split()
+        tokens = _SPACES.split(text.strip(" \t\v\f"))
         if len(tokens) != columns:
             raise BVHError(f"expected {columns} values (one per channel), found {len(tokens)}", label, line)
         for k, tok in enumerate(tokens):
@@ -348,13 +361,15 @@ def parse_bvh(source: str | Path | bytes, name: str | None = None) -> BVHData:
     """Check and parse a BVH file (path or bytes) without converting units or axes."""
     label, text = _read_source(source, name)
     lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+    # Problems found at the end of the file are reported at its last line with text on it.
+    last_line = max((n for n, line in enumerate(lines, 1) if line.strip()), default=1)
     motion_at = _find_motion_line(lines)
     hierarchy_lines = lines if motion_at is None else lines[:motion_at]
-    end_line = len(lines) if motion_at is None else motion_at + 1
+    end_line = last_line if motion_at is None else motion_at + 1
     parser = _HierarchyParser(_Tokens(hierarchy_lines, label, end_line))
     parser.parse()
     if motion_at is None:
-        raise BVHError("the MOTION section is missing", label, len(lines))
+        raise BVHError("the MOTION section is missing", label, last_line)
     frames, frame_time, first = _motion_header(lines, motion_at, label)
     frames_line = next(n for n in range(motion_at + 2, len(lines) + 1) if lines[n - 1].strip())
     values = _motion_values(lines, first, frames, parser.columns, frames_line, label)
