@@ -1,0 +1,59 @@
+"""The import operator and add-on registration on the real Blender."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import bpy
+import pytest
+
+import reactive_anim
+from tests.conftest import require_mocap
+
+MALFORMED = Path(__file__).resolve().parents[1] / "data" / "malformed"
+
+
+def test_import_builds_armature_with_quaternion_action_at_file_rate():
+    path = require_mocap("cmu_iclone/002_03.bvh")
+    result = bpy.ops.reactive_anim.import_bvh(filepath=str(path), armature_name="runner")
+    assert result == {"FINISHED"}
+    rig = bpy.data.objects["runner"]
+    assert rig.type == "ARMATURE" and len(rig.data.bones) == 101
+    action = rig.animation_data.action
+    assert action.use_fake_user
+    assert {pb.rotation_mode for pb in rig.pose.bones} == {"QUATERNION"}
+    scene = bpy.context.scene
+    assert scene.render.fps / scene.render.fps_base == pytest.approx(60.0, rel=1e-3)
+    assert tuple(action.frame_range) == (1.0, 86.0)
+    # metres, not centimetres: the rest pose spans about 1.3 m between its lowest and highest bone heads
+    heads = [rig.matrix_world @ b.head_local for b in rig.data.bones]
+    assert 1.0 < max(h.z for h in heads) - min(h.z for h in heads) < 2.1
+
+
+@pytest.mark.parametrize("name", ["truncated_motion_last_line.bvh", "unknown_channel.bvh", "unbalanced_extra_brace.bvh"])
+def test_malformed_file_is_refused_and_leaves_nothing_behind(name):
+    path = MALFORMED / name
+    assert path.is_file(), f"corpus file {name} is missing"
+    before = (len(bpy.data.objects), len(bpy.data.armatures), len(bpy.data.actions))
+    with pytest.raises(RuntimeError, match=rf"{name}, line \d+"):
+        bpy.ops.reactive_anim.import_bvh(filepath=str(path))
+    assert (len(bpy.data.objects), len(bpy.data.armatures), len(bpy.data.actions)) == before
+
+
+def test_unit_override_scales_the_character():
+    path = require_mocap("cmu/90_18.bvh")
+    bpy.ops.reactive_anim.import_bvh(filepath=str(path), unit="cmu", armature_name="metres")
+    bpy.ops.reactive_anim.import_bvh(filepath=str(path), unit="in", armature_name="inches")
+    tall = bpy.data.objects["metres"].data.bones["Head"].head_local.length
+    short = bpy.data.objects["inches"].data.bones["Head"].head_local.length
+    assert tall / short == pytest.approx(1 / 0.45, rel=1e-5)
+
+
+def test_register_unregister_twice_in_one_process():
+    """The session fixture registered the add-on; cycle it twice more and end registered."""
+    for _ in range(2):
+        reactive_anim.unregister()
+        assert not hasattr(bpy.types, "REACTIVE_ANIM_OT_import_bvh")
+        reactive_anim.register()
+        assert hasattr(bpy.types, "REACTIVE_ANIM_OT_import_bvh")
+    assert bpy.ops.reactive_anim.import_bvh.poll()
