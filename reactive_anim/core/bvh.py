@@ -466,7 +466,9 @@ def format_bvh(
     rot_names = " ".join(f"{c}rotation" for c in order)
 
     def vec(v: np.ndarray) -> np.ndarray:
-        return quat.rotate(to_file, v) / scale
+        out = quat.rotate(to_file, v) / scale
+        out[np.abs(out) < 0.5 * 10.0**-decimals] = 0.0  # no "-0.000000"
+        return out
 
     lines = ["HIERARCHY"]
     with_pos = motion.local_pos is not None
@@ -501,7 +503,7 @@ def format_bvh(
             columns.append(offsets[:, j])
         columns.append(euler[:, j])
     block = np.concatenate(columns, axis=1)
-    block[np.abs(block) < 0.5 * 10.0**-decimals] = 0.0  # no "-0.000000"
+    block[np.abs(block) < 0.5 * 10.0**-decimals] = 0.0
     lines += ["MOTION", f"Frames: {motion.num_frames}", f"Frame Time: {motion.frame_time:.9g}"]
     fmt = " ".join([f"%.{decimals}f"] * block.shape[1])
     lines += [fmt % tuple(row) for row in block]
