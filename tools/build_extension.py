@@ -50,7 +50,9 @@ MANIFEST = REPO / "blender_manifest.toml"
 PYPROJECT = REPO / "pyproject.toml"
 # The one place the bundled versions are pinned (the newest Blender line's environment).
 PINS_FILE = REPO / "tools" / "requirements" / "bpy-5.0.txt"
-BUNDLED_ROOTS = ("mujoco", "onnxruntime")
+# mujoco-core is the simulator itself (the `mujoco` module); the `mujoco` meta package would add
+# mujoco-studio (a viewer with a websocket server), glfw, PyOpenGL and websockets, which a bake never uses.
+BUNDLED_ROOTS = ("mujoco-core", "onnxruntime")
 # Blender provides these; bundling one would shadow Blender's copy for every add-on.
 NEVER_BUNDLED = ("numpy",)
 DEFAULT_CACHE = REPO / ".venv" / "wheel-cache"
