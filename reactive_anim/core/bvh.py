@@ -458,56 +458,61 @@ def format_bvh(
     """
     if up.upper() not in ("Y", "Z"):
         raise BVHError(f"up axis must be 'Y' or 'Z', got '{up}'")
+    if isinstance(unit, str) and unit not in UNITS:
+        raise BVHError(f"unknown unit '{unit}'; use one of {', '.join(UNITS)} or a number")
+    order = rotation_order.upper()
+    quat.to_euler(quat.identity(), order)  # rejects anything but a permutation of XYZ
     scale = UNITS[unit] if isinstance(unit, str) else float(unit)
     to_file = quat.conj(_Y_TO_Z) if up.upper() == "Y" else quat.identity()
-    sk = motion.skeleton
-    order = rotation_order.upper()
-    quat._axis_index(order)
-    rot_names = " ".join(f"{c}rotation" for c in order)
+    tiny = 0.5 * 10.0**-decimals
 
-    def vec(v: np.ndarray) -> np.ndarray:
+    def file_vectors(v: np.ndarray) -> np.ndarray:
         out = quat.rotate(to_file, v) / scale
-        out[np.abs(out) < 0.5 * 10.0**-decimals] = 0.0  # no "-0.000000"
+        out[np.abs(out) < tiny] = 0.0  # no "-0.000000"
         return out
 
     lines = ["HIERARCHY"]
-    with_pos = motion.local_pos is not None
-
-    def joint(j: int, depth: int) -> None:
-        pad = "\t" * depth
-        keyword = "ROOT" if j == 0 else "JOINT"
-        lines.append(f"{pad}{keyword} {sk.names[j]}")
-        lines.append(f"{pad}{{")
-        off = vec(sk.offsets[j])
-        lines.append(f"{pad}\tOFFSET {off[0]:.{decimals}f} {off[1]:.{decimals}f} {off[2]:.{decimals}f}")
-        if j == 0 or with_pos:
-            lines.append(f"{pad}\tCHANNELS 6 Xposition Yposition Zposition {rot_names}")
-        else:
-            lines.append(f"{pad}\tCHANNELS 3 {rot_names}")
-        for c in sk.children(j):
-            joint(c, depth + 1)
-        if j in sk.end_sites:
-            tip = vec(sk.end_sites[j])
-            lines.extend([f"{pad}\tEnd Site", f"{pad}\t{{", f"{pad}\t\tOFFSET {tip[0]:.{decimals}f} {tip[1]:.{decimals}f} {tip[2]:.{decimals}f}", f"{pad}\t}}"])
-        lines.append(f"{pad}}}")
-
-    joint(0, 0)
-    # Motion block: per joint [positions] + rotations, vectorised over frames.
+    _hierarchy_lines(motion, 0, order, file_vectors, f"%.{decimals}f", lines)
     local_rot = quat.mul(quat.mul(to_file, motion.local_rot), quat.conj(to_file))
-    euler = np.degrees(quat.to_euler(local_rot, order))  # (T, J, 3)
-    offsets = vec(motion.joint_offsets())
-    offsets[:, 0] = vec(motion.root_pos)
-    columns = []
-    for j in range(sk.num_joints):
-        if j == 0 or with_pos:
-            columns.append(offsets[:, j])
-        columns.append(euler[:, j])
-    block = np.concatenate(columns, axis=1)
-    block[np.abs(block) < 0.5 * 10.0**-decimals] = 0.0
+    block = _motion_block(motion, np.degrees(quat.to_euler(local_rot, order)), file_vectors)
+    block[np.abs(block) < tiny] = 0.0
     lines += ["MOTION", f"Frames: {motion.num_frames}", f"Frame Time: {motion.frame_time:.9g}"]
-    fmt = " ".join([f"%.{decimals}f"] * block.shape[1])
-    lines += [fmt % tuple(row) for row in block]
+    row_format = " ".join([f"%.{decimals}f"] * block.shape[1])
+    lines += [row_format % tuple(row) for row in block]
     return "\n".join(lines) + "\n"
+
+
+def _hierarchy_lines(motion: Motion, joint: int, order: str, file_vectors, number: str, lines: list[str], depth: int = 0) -> None:
+    """Append one joint's block (and its children's, recursively) to `lines`."""
+    sk = motion.skeleton
+    pad = "\t" * depth
+    offset = " ".join(number % v for v in file_vectors(sk.offsets[joint]))
+    rotations = " ".join(f"{c}rotation" for c in order)
+    channels = f"6 Xposition Yposition Zposition {rotations}" if _writes_position(motion, joint) else f"3 {rotations}"
+    lines += [f"{pad}{'ROOT' if joint == 0 else 'JOINT'} {sk.names[joint]}", f"{pad}{{", f"{pad}\tOFFSET {offset}",
+              f"{pad}\tCHANNELS {channels}"]
+    for child in sk.children(joint):
+        _hierarchy_lines(motion, child, order, file_vectors, number, lines, depth + 1)
+    if joint in sk.end_sites:
+        tip = " ".join(number % v for v in file_vectors(sk.end_sites[joint]))
+        lines += [f"{pad}\tEnd Site", f"{pad}\t{{", f"{pad}\t\tOFFSET {tip}", f"{pad}\t}}"]
+    lines.append(f"{pad}}}")
+
+
+def _writes_position(motion: Motion, joint: int) -> bool:
+    return joint == 0 or motion.local_pos is not None
+
+
+def _motion_block(motion: Motion, euler_degrees: np.ndarray, file_vectors) -> np.ndarray:
+    """(T, channels) values in the hierarchy's channel order: per joint [positions] + rotations."""
+    translations = file_vectors(motion.joint_offsets())
+    translations[:, 0] = file_vectors(motion.root_pos)
+    columns = []
+    for j in range(motion.skeleton.num_joints):
+        if _writes_position(motion, j):
+            columns.append(translations[:, j])
+        columns.append(euler_degrees[:, j])
+    return np.concatenate(columns, axis=1)
 
 
 def write_bvh(path: str | Path, motion: Motion, **options) -> None:
