@@ -23,6 +23,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 MOCAP = REPO.parent / "shared" / "mocap"
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "tools"))
 
 from reactive_anim.core import bvh  # noqa: E402
 
@@ -120,7 +121,14 @@ def _bench_write(bpy, bvh_import, action_io) -> None:
            frames=motion.num_frames, keys=motion.num_frames * (22 * 4 + 3), runs=runs, blender=bpy.app.version_string)
 
 
-GROUPS = {"bvh": bench_bvh, "blender": bench_blender}
+def bench_simulation() -> None:
+    """Ragdoll build, step cost, BC and CD windows (figures defined in tools/bench_sim.py)."""
+    from bench_sim import bench_sim
+
+    bench_sim(report)
+
+
+GROUPS = {"bvh": bench_bvh, "blender": bench_blender, "sim": bench_simulation}
 
 
 def print_table() -> None:
