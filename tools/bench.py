@@ -133,9 +133,10 @@ GROUPS = {"bvh": bench_bvh, "blender": bench_blender, "sim": bench_simulation}
 
 def print_table() -> None:
     print()
-    print(f"{'group':8s} {'figure':45s} {'value':>14s}  unit")
+    print(f"{'group':8s} {'figure':58s} {'value':>14s}  {'unit':9s} on")
     for row in FIGURES:
-        print(f"{row['group']:8s} {row['name']:45s} {row['value']:14.4f}  {row['unit']}")
+        on = row.get("clip") or row.get("file") or row.get("library") or ""
+        print(f"{row['group']:8s} {row['name']:58s} {row['value']:14.4f}  {row['unit']:9s} {on}")
 
 
 def main(argv: list[str]) -> int:
