@@ -6,6 +6,7 @@ and that can be rebuilt from code, so the clips are procedural, not captured. Ru
 
     python tools/make_sample_clips.py               # writes sample_clips/*.bvh
     python tools/make_sample_clips.py --out DIR     # writes elsewhere (the tests use a temp dir)
+    python tools/make_sample_clips.py --sheets out/contact_sheets   # also draws contact sheet PNGs
 
 tools/ is not a package, so other tools and the tests import this file by path:
 
@@ -17,6 +18,9 @@ tools/ is not a package, so other tools and the tests import this file by path:
 
 Everything is deterministic (no randomness), so regenerating gives byte-identical files.
 To add a clip: write a function returning a Motion on `sample_skeleton()` and list it in CLIPS.
+Clip families are parameter tables: a walk or run is a `Gait`, a stepping reaction a `Push` row
+of STEPS (a pendulum balance model decides the steps), a get-up a list of key poses in GETUPS.
+The fall and sway reactions are still missing: they are to come from the ragdoll (physics).
 
 World: metres, Z up; the character faces -Y (Blender's convention: the front view looks along +Y
 at the character's face), so its left (.L) is +X. In the written BVH (Y up) it faces +Z.
@@ -37,7 +41,7 @@ if str(REPO) not in sys.path:  # run as a script: make the reactive_anim package
     sys.path.insert(0, str(REPO))
 
 from reactive_anim.core import bvh, quat  # noqa: E402
-from reactive_anim.core.skeleton import Motion, Skeleton  # noqa: E402
+from reactive_anim.core.skeleton import Motion, Skeleton, forward_kinematics  # noqa: E402
 
 HEIGHT = 1.75
 FPS = 60
@@ -184,6 +188,7 @@ def two_bone_ik(
     rest_upper: np.ndarray,
     rest_lower: np.ndarray,
     pole: np.ndarray,
+    rest_pole: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Global rotations (T, 4) of the upper and lower bone of a limb so its end reaches `target`.
 
@@ -192,7 +197,8 @@ def two_bone_ik(
     offsets); pole: (3,), the direction the middle joint (knee) should point. The hinge
     axis is the pole crossed with the root-to-target line, so the middle joint bends towards the
     pole and the two bones share the hinge. Out-of-reach targets are clamped just short of a
-    straight limb.
+    straight limb. `rest_pole` is where the pole points in the rest pose (default: `pole`); pass
+    it when the pole turns with the body (a lying character's knees point at the floor).
     """
     len1 = float(np.linalg.norm(rest_upper))
     len2 = float(np.linalg.norm(rest_lower))
@@ -206,7 +212,7 @@ def two_bone_ik(
     cos_a = (len1 * len1 + dist * dist - len2 * len2) / (2.0 * len1 * dist)
     middle = root + len1 * (cos_a * along + np.sqrt(1.0 - cos_a * cos_a) * bend)
     end = root + dist * along
-    rest_hinge = np.cross(pole, rest_upper + rest_lower)
+    rest_hinge = np.cross(pole if rest_pole is None else rest_pole, rest_upper + rest_lower)
     upper = _frame(middle - root, hinge) @ np.swapaxes(_frame(rest_upper, rest_hinge), -1, -2)
     lower = _frame(end - middle, hinge) @ np.swapaxes(_frame(rest_lower, rest_hinge), -1, -2)
     return quat.from_matrix(upper), quat.from_matrix(lower)
@@ -489,19 +495,695 @@ def walk_clip() -> Motion:
     return gait_clip(WALK, sample_skeleton())
 
 
-CLIPS: dict[str, Callable[[], Motion]] = {
-    "walk": walk_clip,
+# A run on the walk's machinery: stance is short (toe off at 30 % of the cycle), so each foot's
+# stance is followed by a flight phase with both feet off the floor; the pelvis is lowest in
+# mid-stance (bob_low_at near foot_under_pelvis), not in double support; the swing ankle's
+# extreme ("lowest_at"/"swing_clearance") becomes a high heel kick; elbows bent near 80 deg.
+RUN = Gait(
+    speed=3.0,
+    cycle_frames=44,  # 0.73 s per cycle, cadence 164 steps/min, stride 2.2 m
+    cycles=3,
+    step_width=0.08,
+    foot_flat=0.05,
+    heel_off=0.14,
+    ball_off=0.22,
+    toe_off=0.30,
+    foot_under_pelvis=0.13,
+    heel_strike_pitch=-6.0,
+    toe_off_pitch=55.0,
+    toe_off_toe_pitch=25.0,
+    level_pitch=25.0,
+    level_at=0.35,
+    lowest_at=0.4,
+    toe_relax=0.5,
+    swing_clearance=0.22,
+    pelvis_drop=0.07,
+    bob=0.02,
+    bob_low_at=0.13,
+    sway=0.01,
+    surge=0.0,
+    pelvis_yaw=7.0,
+    pelvis_list=3.0,
+    pelvis_tilt=8.0,
+    pelvis_tilt_swing=1.0,
+    trunk_lean=9.0,
+    chest_yaw=8.0,
+    list_compensation=0.8,
+    arm_swing=30.0,
+    arm_mean=5.0,
+    arm_abduction=10.0,
+    arm_lag=0.03,
+    elbow_mean=80.0,
+    elbow_swing=15.0,
+    wrist_swing=5.0,
+    clavicle_swing=5.0,
+)
+
+
+def run_clip() -> Motion:
+    """A 2.2 s run at 3 m/s: three seamless cycles with a flight phase after every push-off."""
+    return gait_clip(RUN, sample_skeleton())
+
+
+# ---------------------------------------------------------------------------------------------
+# Poses by parameters: the keyframed clips (idle, steps, get-ups) describe a body with a few
+# named angles instead of 22 quaternions, so a key pose is a short dict and a variant a row.
+
+SIDE_PARAMS = ("arm_flex", "arm_abd", "elbow", "wrist", "hip_flex", "hip_abd", "knee", "ankle", "toe")
+BODY_PARAMS = ("x", "fwd", "z", "pelvis_pitch", "pelvis_roll", "pelvis_yaw", "spine_pitch", "spine_roll",
+               "spine_yaw", "neck_pitch")
+PARAMS = BODY_PARAMS + tuple(f"{p}_{side}" for side in SIDES for p in SIDE_PARAMS)
+STAND_WIDTH = 0.20  # ankle centres apart when standing at rest, m
+STAND_DROP = 0.012  # the pelvis sits this far below its rest height: soft knees, not locked
+# Pose parameters are degrees, except x, fwd, z: the root in metres (x to the character's left,
+# fwd along FORWARD). Signs: pitch and flexion forward, roll to the left, yaw to the left; ankle
+# positive points the toes down; toe positive curls them.
+
+
+def pose(base: dict[str, float] | None = None, **changes: float) -> dict[str, float]:
+    """A copy of `base` with `changes`; a side parameter without _L/_R sets both sides."""
+    out = dict(STAND if base is None else base)
+    for name, value in changes.items():
+        if name in SIDE_PARAMS:
+            for side in SIDES:
+                out[f"{name}_{side}"] = value
+        elif name in out:
+            out[name] = value
+        else:
+            raise KeyError(f"unknown pose parameter {name!r}")
+    return out
+
+
+# The standing pose every reaction starts and ends in and the idle breathes around.
+STAND = pose(dict.fromkeys(PARAMS, 0.0), z=PELVIS_Z * HEIGHT - STAND_DROP, pelvis_pitch=3.0, spine_pitch=1.0,
+             neck_pitch=-4.0, arm_flex=4.0, arm_abd=6.0, elbow=14.0, wrist=4.0)
+
+
+def _vector(p: dict[str, float]) -> np.ndarray:
+    return np.array([p[name] for name in PARAMS])
+
+
+def _fk_pose(skeleton: Skeleton, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Root position (T, 3) and local rotations (T, J, 4) for parameter rows (T, len(PARAMS)).
+
+    The spine's angles are shared over its three joints and the neck's over neck and head, as a
+    real spine bends along its length.
+    """
+    count = len(values)
+    idx = skeleton.index
+    col = {name: values[:, k] for k, name in enumerate(PARAMS)}
+    rad = {name: np.radians(v) for name, v in col.items()}
+    local = quat.identity((count, skeleton.num_joints))
+    root = np.stack([col["x"], np.zeros(count), col["z"]], axis=-1) + col["fwd"][:, None] * FORWARD
+    local[:, 0] = quat.mul(quat.mul(_rz(rad["pelvis_yaw"]), _ry(rad["pelvis_roll"])), _rx(rad["pelvis_pitch"]))
+    for j in ("spine", "spine.001", "chest"):
+        local[:, idx(j)] = quat.mul(quat.mul(_rz(rad["spine_yaw"] / 3), _ry(rad["spine_roll"] / 3)),
+                                    _rx(rad["spine_pitch"] / 3))
+    for j in ("neck", "head"):
+        local[:, idx(j)] = _rx(rad["neck_pitch"] / 2)
+    for side, s in SIDES.items():
+        r = {p: rad[f"{p}_{side}"] for p in SIDE_PARAMS}
+        local[:, idx(f"upper_arm.{side}")] = quat.mul(_rx(-r["arm_flex"]), _ry(-s * r["arm_abd"]))
+        local[:, idx(f"forearm.{side}")] = _rx(-r["elbow"])
+        local[:, idx(f"hand.{side}")] = _rx(-r["wrist"])
+        local[:, idx(f"thigh.{side}")] = quat.mul(_rx(-r["hip_flex"]), _ry(-s * r["hip_abd"]))
+        local[:, idx(f"shin.{side}")] = _rx(r["knee"])
+        local[:, idx(f"foot.{side}")] = _rx(r["ankle"])
+        local[:, idx(f"toe.{side}")] = _rx(r["toe"])
+    return root, local
+
+
+def _solve_limb(
+    skeleton: Skeleton, root: np.ndarray, local: np.ndarray, chain: tuple[str, str, str],
+    target: np.ndarray, end_world: np.ndarray | None, pole: np.ndarray, rest_pole: np.ndarray,
+) -> None:
+    """Turn a limb's two bones (in place) so its end joint reaches `target` (T, 3).
+
+    pole: (T, 3) world direction the middle joint points; rest_pole: the same in the rest pose.
+    end_world: (T, 4) world rotation to give the end joint (a planted foot stays flat), or None
+    to keep its local rotation.
+    """
+    upper, middle, end = (skeleton.index(n) for n in chain)
+    parent = skeleton.parents[upper]
+    pos, rot = forward_kinematics(skeleton, root, local, skeleton.offsets)
+    upper_rot, lower_rot = two_bone_ik(pos[:, upper], target, skeleton.offsets[middle], skeleton.offsets[end],
+                                       pole, rest_pole)
+    local[:, upper] = quat.mul(quat.conj(rot[:, parent]), upper_rot)
+    local[:, middle] = quat.mul(quat.conj(upper_rot), lower_rot)
+    if end_world is not None:
+        local[:, end] = quat.mul(quat.conj(lower_rot), end_world)
+
+
+def _leg_ik(skeleton: Skeleton, root: np.ndarray, local: np.ndarray, side: str, ankle: np.ndarray,
+            foot_world: np.ndarray) -> None:
+    """Legs by IK, knees pointing where the pelvis faces (so they stay right when it pitches)."""
+    pole = quat.rotate(local[:, 0], FORWARD)
+    _solve_limb(skeleton, root, local, (f"thigh.{side}", f"shin.{side}", f"foot.{side}"), ankle, foot_world,
+                pole, FORWARD)
+
+
+def _arm_ik(skeleton: Skeleton, root: np.ndarray, local: np.ndarray, side: str, hand: np.ndarray,
+            hand_world: np.ndarray) -> None:
+    """Arms by IK, elbows pointing back and a little out from the chest (a push-up's elbows),
+    turning outwards when the back faces the floor (lying face up) so they stay above it."""
+    _, rot = forward_kinematics(skeleton, root, local, skeleton.offsets)
+    chest = rot[:, skeleton.index("chest")]
+    back, out = quat.rotate(chest, -FORWARD), quat.rotate(chest, SIDES[side] * X_AXIS)
+    pole = back + (0.5 + 3.0 * np.maximum(-back[:, 2:], 0.0)) * out
+    _solve_limb(skeleton, root, local, (f"upper_arm.{side}", f"forearm.{side}", f"hand.{side}"), hand, hand_world,
+                pole, -FORWARD)
+
+
+def _ease(s: np.ndarray) -> np.ndarray:
+    """Minimum-jerk progress 0 -> 1 (zero speed and acceleration at both ends) for s in [0, 1]."""
+    s = np.clip(s, 0.0, 1.0)
+    return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
+
+
+def _stand_ankles(count: int) -> dict[str, np.ndarray]:
+    """Ankle positions (T, 3) of the standing pose: under the hips, a little wider."""
+    ankle_z = ANKLE_Z * HEIGHT
+    return {side: np.tile([s * STAND_WIDTH / 2, 0.0, ankle_z], (count, 1)) for side, s in SIDES.items()}
+
+
+def _motion(skeleton: Skeleton, root: np.ndarray, local: np.ndarray) -> Motion:
+    return Motion(skeleton=skeleton, fps=float(FPS), root_pos=root, local_rot=quat.normalize(local))
+
+
+# ---------------------------------------------------------------------------------------------
+# Idle
+
+
+def idle_clip(seconds: float = 6.0) -> Motion:
+    """Standing at rest: a breath every 3 s, the weight shifting from foot to foot every 6 s.
+
+    Every oscillation has a whole number of periods in the clip, so it loops. The feet stay
+    where they are (legs by IK), so the weight shift bends the knees, not the floor.
+    """
+    skeleton = sample_skeleton()
+    count = int(round(seconds * FPS))
+    t = np.arange(count) / FPS
+    breath = np.sin(2 * np.pi * t / 3.0)
+    shift = np.sin(2 * np.pi * t / seconds)
+    values = np.tile(_vector(STAND), (count, 1))
+    changes = {
+        "x": 0.018 * shift, "z": -0.004 * (1.0 - np.cos(4 * np.pi * t / seconds)), "pelvis_roll": -1.5 * shift,
+        "spine_roll": 2.0 * shift, "spine_pitch": -1.2 * breath, "neck_pitch": 1.0 * breath + 1.5 * shift,
+        "arm_flex_L": 1.5 * breath, "arm_flex_R": 1.5 * breath, "elbow_L": 2.0 * shift, "elbow_R": -2.0 * shift,
+        "pelvis_yaw": 1.5 * np.sin(2 * np.pi * t / seconds + 1.0),
+    }
+    for name, delta in changes.items():
+        values[:, PARAMS.index(name)] += delta
+    root, local = _fk_pose(skeleton, values)
+    for side, ankle in _stand_ankles(count).items():
+        _leg_ik(skeleton, root, local, side, ankle, quat.identity((count,)))
+    return _motion(skeleton, root, local)
+
+
+# ---------------------------------------------------------------------------------------------
+# Stepping reactions: a linear inverted pendulum decides where the feet land
+
+
+GRAVITY = 9.81
+COM_HEIGHT = 0.95  # the pendulum's height: the centre of mass of a 1.75 m adult standing, m
+OMEGA = float(np.sqrt(GRAVITY / COM_HEIGHT))
+SIM_STEPS = 10  # pendulum steps per frame (dt = 1/600 s)
+# The sole as a rectangle around the ankle (x to the left, y along world Y: the toes are at -Y).
+SOLE = np.array([[-0.045, -0.19], [0.045, -0.19], [0.045, 0.05], [-0.045, 0.05]])
+FOOT_CENTRE = np.array([0.0, -0.07])  # the sole's middle, ankle-relative: where a step aims
+
+
+@dataclass(frozen=True)
+class Push:
+    """One stepping reaction: the push and how the character may step to catch itself."""
+
+    direction: float  # degrees from the facing direction, positive to the character's left
+    speed: float  # centre-of-mass speed the push leaves, m/s
+    max_step: float  # longest step, ankle to ankle over the ground, m
+    first: str  # the foot that steps first, "L" or "R"
+    react: float = 0.15  # time before the first foot lifts, s
+    swing: float = 0.30  # time a foot is in the air, s
+    pause: float = 0.06  # double support between steps, s
+
+
+# Variants: a row each. One-step pushes are caught by a single step to the capture point; the
+# several-steps rows push harder and allow only short steps, so the first landing falls short.
+STEPS: dict[str, Push] = {
+    "step_forward_1": Push(direction=0.0, speed=0.75, max_step=0.75, first="R"),
+    "step_forward_2": Push(direction=20.0, speed=0.9, max_step=0.75, first="L", react=0.12),
+    "step_forward_3": Push(direction=-15.0, speed=1.0, max_step=0.75, first="R", react=0.2, swing=0.34),
+    "steps_forward_1": Push(direction=0.0, speed=1.15, max_step=0.6, first="L", swing=0.32),
+    "steps_forward_2": Push(direction=15.0, speed=1.2, max_step=0.5, first="L", swing=0.25, pause=0.04),
+    "steps_forward_3": Push(direction=-25.0, speed=1.2, max_step=0.4, first="R", swing=0.22, pause=0.03),
+    "step_back_1": Push(direction=180.0, speed=0.45, max_step=0.55, first="L"),
+    "step_back_2": Push(direction=160.0, speed=0.5, max_step=0.55, first="L", react=0.12),
+    "step_back_3": Push(direction=-165.0, speed=0.4, max_step=0.55, first="R", swing=0.34),
+    "steps_back_1": Push(direction=180.0, speed=0.65, max_step=0.55, first="R"),
+    "steps_back_2": Push(direction=165.0, speed=0.7, max_step=0.45, first="L", swing=0.25, pause=0.04),
+    "steps_back_3": Push(direction=-160.0, speed=0.7, max_step=0.35, first="R", swing=0.22, pause=0.03),
 }
 
 
+def _interval(points: np.ndarray, axis: np.ndarray) -> tuple[float, float]:
+    """The extent of 2D points along a unit axis."""
+    along = points @ axis
+    return float(along.min()), float(along.max())
+
+
+@dataclass
+class StepPlan:
+    """What the balance model decided, per frame: CoM over the ground (T, 2), each ankle (T, 3)
+    and foot pitch (T,), how alarmed the body is (T,, 0..1), and the touch-down frames."""
+
+    com: np.ndarray
+    ankles: dict[str, np.ndarray]
+    pitch: dict[str, np.ndarray]
+    alarm: np.ndarray
+    touchdowns: list[tuple[str, int]]
+
+
+def balance_plan(push: Push) -> StepPlan:
+    """Simulate the pushed body as a linear inverted pendulum along the push, stepping to its
+    capture point.
+
+    The centre of mass u (along the push) moves as u'' = w^2 (u - p), w = sqrt(g / z0). The centre
+    of pressure p stays within the feet on the floor (their soles' extent along the push); there
+    it follows a capture-point controller p = xi + k (xi - target), xi = u + u'/w, which brings the
+    body to rest over the middle of its feet. When xi is outside the feet (the push is too strong
+    to ride out on the ankles), a foot lifts, and it lands where xi will be when it lands (the
+    capture point, predicted with p held at the stance foot's edge), or as far as `max_step`
+    allows; when that falls short, the other foot steps next. Across the push the pendulum is
+    planar; a landing foot keeps at least 14 cm sideways from the other, so the feet never cross.
+    """
+    dt = 1.0 / (FPS * SIM_STEPS)
+    angle = np.radians(push.direction)
+    axis = np.cos(angle) * FORWARD[:2] + np.sin(angle) * X_AXIS[:2]
+    ankle_z = ANKLE_Z * HEIGHT
+    base = {side: np.array([s * STAND_WIDTH / 2, 0.0]) for side, s in SIDES.items()}
+    along = {side: 0.0 for side in SIDES}  # each foot's travel along the push
+    shift = {side: 0.0 for side in SIDES}  # sideways correction that keeps the feet uncrossed
+
+    def foot(side: str) -> np.ndarray:
+        return base[side] + along[side] * axis + shift[side] * X_AXIS[:2]
+
+    def sole(side: str) -> tuple[float, float]:
+        return _interval(foot(side) + SOLE, axis)
+
+    u, v = 0.0, push.speed
+    planted = {"L": True, "R": True}
+    swing: tuple[str, np.ndarray, np.ndarray, float] | None = None  # side, from, to, lift time
+    next_lift, mover, touchdowns = push.react, push.first, []
+    alarm_state = np.zeros(2)  # a critically damped follower of the alarm signal, and its rate
+    com, ankles, pitch, alarm = [], {s: [] for s in SIDES}, {s: [] for s in SIDES}, []
+    settled_at, t, frame = None, 0.0, 0
+    while settled_at is None or frame < settled_at + int(0.6 * FPS):
+        if frame > 6 * FPS or len(touchdowns) > 4:
+            raise RuntimeError(f"the balance model does not recover from {push}")
+        com.append(u * axis)
+        alarm.append(alarm_state[0])
+        for side in SIDES:
+            if swing is not None and swing[0] == side:
+                w = (t - swing[3]) / push.swing
+                bump = 16 * w * w * (1 - w) * (1 - w)
+                xy = swing[1] + (swing[2] - swing[1]) * _ease(np.array(w))
+                clearance = 0.05 + 0.1 * float(np.linalg.norm(swing[2] - swing[1]))  # long steps lift higher
+                ankles[side].append([xy[0], xy[1], ankle_z + clearance * bump])
+                pitch[side].append(-np.radians(10.0) * bump)
+            else:
+                ankles[side].append([*foot(side), ankle_z])
+                pitch[side].append(0.0)
+        for _ in range(SIM_STEPS):
+            xi = u + v / OMEGA
+            support = [side for side in SIDES if planted[side]]
+            lo = min(sole(side)[0] for side in support)
+            hi = max(sole(side)[1] for side in support)
+            target = float(np.mean([(foot(side) + FOOT_CENTRE) @ axis for side in support]))
+            if swing is None and t >= next_lift and (xi < lo - 0.01 or xi > hi + 0.01):
+                stance = "R" if mover == "L" else "L"
+                edge = float(np.clip(xi, *sole(stance)))
+                capture = edge + (xi - edge) * np.exp(OMEGA * push.swing)
+                reach = capture - (base[mover] + FOOT_CENTRE) @ axis - along[stance]
+                reach = float(np.clip(reach, -push.max_step, push.max_step))
+                start = foot(mover)
+                along[mover] = along[stance] + reach
+                s = SIDES[mover]
+                shift[mover] += s * max(0.0, 0.14 - s * (foot(mover)[0] - foot(stance)[0]))
+                swing = (mover, start, foot(mover), t)
+                planted[mover] = False
+            if swing is not None and t >= swing[3] + push.swing - 1e-9:
+                planted[swing[0]] = True
+                touchdowns.append((swing[0], frame + 1))
+                mover = "R" if swing[0] == "L" else "L"
+                next_lift = t + push.pause
+                swing = None
+            p = float(np.clip(xi + 1.5 * (xi - target), lo, hi))
+            v += OMEGA * OMEGA * (u - p) * dt
+            u += v * dt
+            raw = min(abs(v) / 0.8, 1.0)
+            alarm_state += dt * np.array([alarm_state[1], 144.0 * (raw - alarm_state[0]) - 24.0 * alarm_state[1]])
+            t += dt
+        frame += 1
+        if settled_at is None and touchdowns and swing is None and abs(v) < 0.003 and abs(xi - target) < 0.003:
+            settled_at = frame
+    return StepPlan(np.array(com), {s: np.array(a) for s, a in ankles.items()},
+                    {s: np.array(a) for s, a in pitch.items()}, np.array(alarm), touchdowns)
+
+
+# Key poses the upper body passes through when the push is strong (alarm = 1): the trunk bends
+# into the fall's direction for a forward push and against it for a backward one (the hip
+# strategy), arms fly up and out to balance. Blended from STAND by the alarm and the direction.
+FLUNG_FORWARD = pose(pelvis_pitch=8.0, spine_pitch=14.0, neck_pitch=-14.0, arm_flex=50.0, arm_abd=30.0,
+                     elbow=40.0, wrist=10.0)
+FLUNG_BACK = pose(pelvis_pitch=12.0, spine_pitch=18.0, neck_pitch=-6.0, arm_flex=70.0, arm_abd=35.0,
+                  elbow=30.0, wrist=-10.0)
+# Per unit of push to the character's left: bend the trunk right, fling the left arm out.
+FLUNG_LEFT = dict.fromkeys(PARAMS, 0.0) | {"spine_roll": -10.0, "pelvis_roll": 3.0, "arm_abd_L": 40.0,
+                                             "arm_abd_R": -15.0, "arm_flex_L": 10.0}
+
+
+def step_clip(push: Push) -> Motion:
+    """A stepping reaction: pendulum root path, legs by IK to the planned feet, upper body blended
+    between key poses by the pendulum's alarm. Starts in the standing pose at the push, ends at rest."""
+    skeleton = sample_skeleton()
+    plan = balance_plan(push)
+    count = len(plan.com)
+    angle = np.radians(push.direction)
+    ahead, side = np.cos(angle), np.sin(angle)
+    stand = _vector(STAND)
+    flung = (max(ahead, 0.0) * (_vector(FLUNG_FORWARD) - stand) + max(-ahead, 0.0) * (_vector(FLUNG_BACK) - stand)
+             + side * _vector(FLUNG_LEFT))
+    values = stand + plan.alarm[:, None] * flung
+    values[:, PARAMS.index("x")] = plan.com[:, 0]
+    values[:, PARAMS.index("fwd")] = -plan.com[:, 1]
+    root, local = _fk_pose(skeleton, values)
+    # Pelvis height: as high as standing allows, lower where the feet are far apart (long legs
+    # reach 97 % at most), then smoothed so the body sinks and rises gradually.
+    reach = 0.97 * (THIGH + SHANK) * HEIGHT
+    limit = np.full(count, root[0, 2])
+    for s in SIDES:
+        hip = quat.rotate(local[:, 0], skeleton.offsets[skeleton.index(f"thigh.{s}")])
+        flat = np.linalg.norm(root[:, :2] + hip[:, :2] - plan.ankles[s][:, :2], axis=1)
+        limit = np.minimum(limit, plan.ankles[s][:, 2] - hip[:, 2] + np.sqrt(np.maximum(reach**2 - flat**2, 0.0)))
+    window = int(0.15 * FPS)
+    padded = np.pad(limit, window, mode="edge")
+    low = np.min(np.lib.stride_tricks.sliding_window_view(padded, 2 * window + 1), axis=1)
+    kernel = np.exp(-0.5 * (np.arange(-window, window + 1) / (window / 3)) ** 2)
+    sunk = np.convolve(np.pad(low, window, mode="edge"), kernel / kernel.sum(), mode="valid")
+    # Frame 0 is the standing pose exactly; the sinking starts with the push.
+    root[:, 2] += (sunk - root[:, 2]) * _ease(np.arange(count) / (push.react * FPS))
+    for s in SIDES:
+        _swing_leg(skeleton, root, local, s, plan.ankles[s].copy(), _rx(plan.pitch[s]))
+    return _motion(skeleton, root, local)
+
+
+def _swing_leg(skeleton: Skeleton, root: np.ndarray, local: np.ndarray, side: str, ankle: np.ndarray,
+               foot_world: np.ndarray) -> None:
+    """Leg IK for a stepping foot. A swinging foot is not held flat: its ankle turns at most 45 deg
+    from neutral (a fast long step folds the leg without bending the ankle past its range), so
+    its toes hang; where they would scuff the floor the ankle is carried higher (a few passes)."""
+    count = len(ankle)
+    foot, toe = skeleton.index(f"foot.{side}"), skeleton.index(f"toe.{side}")
+    airborne = np.clip((ankle[:, 2] - ANKLE_Z * HEIGHT) / 0.025, 0.0, 1.0)
+    for _ in range(4):
+        _leg_ik(skeleton, root, local, side, ankle, foot_world)
+        angle = quat.angle_between(quat.identity(), local[:, foot])
+        keep = 1.0 - airborne * (1.0 - np.minimum(1.0, np.radians(45.0) / np.maximum(angle, 1e-9)))
+        local[:, foot] = quat.slerp(quat.identity((count,)), local[:, foot], keep)
+        pos, rot = forward_kinematics(skeleton, root, local, skeleton.offsets)
+        tip = pos[:, toe] + quat.rotate(rot[:, toe], skeleton.end_sites[toe])
+        scuff = np.maximum(TOE_TIP_Z * HEIGHT + 0.02 - tip[:, 2], 0.0) * airborne
+        window = int(0.1 * FPS)
+        scuff = np.max(np.lib.stride_tricks.sliding_window_view(np.pad(scuff, window), 2 * window + 1), axis=1)
+        smooth = np.hanning(2 * window + 1)
+        ankle[:, 2] += np.convolve(scuff, smooth / smooth.sum(), "same") * airborne
+
+
+# ---------------------------------------------------------------------------------------------
+# Get-ups: key poses, interpolated with minimum-jerk easing; hands and feet reach world targets
+# by IK, so a hand or foot whose target does not change between two keys stays planted.
+
+
+@dataclass(frozen=True)
+class Key:
+    """A key pose at time `at` (s).
+
+    hands: world target of a wrist with its hand flat on the floor (x, mirrored per side; fwd; z;
+    the fingers' heading in degrees, 0 forward, 90 outwards), or None: the arms keep the pose's
+    own angles. feet: world target of an ankle (x mirrored, fwd, z, the foot's world pitch in
+    degrees, toes down positive), or None: where the pose's leg angles put it.
+    """
+
+    at: float
+    body: dict[str, float]
+    hands: tuple[float, float, float, float] | None = None
+    feet: tuple[float, float, float, float] | None = None
+
+
+def _side_point(xyz: tuple[float, ...], s: float) -> np.ndarray:
+    return np.array([s * xyz[0], 0.0, xyz[2]]) + xyz[1] * FORWARD
+
+
+HAND_DOWN = 0.03  # wrist height of a hand flat on the floor, m
+ANKLE_UP = ANKLE_Z * HEIGHT
+# Face down (head towards FORWARD): hands beside the hips, then under the shoulders, push the
+# chest up, draw the knees under the hips (hands and knees), tuck the toes and push back into a
+# deep squat, stand up.
+PRONE_GETUP = [
+    Key(0.0, pose(z=0.11, pelvis_pitch=88.0, spine_pitch=0.0, neck_pitch=-25.0),
+        hands=(0.32, 0.28, HAND_DOWN, 15.0), feet=(0.12, -0.86, 0.075, 150.0)),
+    Key(0.4, pose(z=0.11, pelvis_pitch=88.0, spine_pitch=0.0, neck_pitch=-30.0),
+        hands=(0.32, 0.28, HAND_DOWN, 15.0), feet=(0.12, -0.86, 0.075, 150.0)),
+    Key(1.2, pose(z=0.16, pelvis_pitch=72.0, spine_pitch=-22.0, neck_pitch=-20.0),
+        hands=(0.32, 0.28, HAND_DOWN, 15.0), feet=(0.12, -0.84, 0.075, 150.0)),
+    Key(2.1, pose(fwd=-0.16, z=0.52, pelvis_pitch=85.0, spine_pitch=0.0, neck_pitch=-25.0),
+        hands=(0.32, 0.28, HAND_DOWN, 15.0), feet=(0.12, -0.62, 0.075, 150.0)),
+    Key(2.8, pose(fwd=-0.22, z=0.55, pelvis_pitch=85.0, spine_pitch=5.0, neck_pitch=-15.0, toe=-55.0),
+        hands=(0.32, 0.28, HAND_DOWN, 15.0), feet=(STAND_WIDTH / 2, -0.55, 0.17, 70.0)),
+    Key(3.7, pose(fwd=-0.83, z=0.46, pelvis_pitch=45.0, spine_pitch=25.0, neck_pitch=-30.0, arm_flex=125.0,
+                  elbow=20.0), feet=(STAND_WIDTH / 2, -0.68, ANKLE_UP, 0.0)),
+    Key(4.6, pose(fwd=-0.68), feet=(STAND_WIDTH / 2, -0.68, ANKLE_UP, 0.0)),
+    Key(5.1, pose(fwd=-0.68), feet=(STAND_WIDTH / 2, -0.68, ANKLE_UP, 0.0)),
+]
+# From sitting on the floor (knees bent, feet flat, hands behind): rock forward onto the feet
+# into a squat with the arms reaching forward, stand up. The face-up get-up sits up into it.
+SIT_KEYS = [
+    Key(0.0, pose(z=0.11, pelvis_pitch=-15.0, spine_pitch=18.0, neck_pitch=5.0),
+        hands=(0.22, -0.15, HAND_DOWN, 90.0), feet=(STAND_WIDTH / 2, 0.50, ANKLE_UP, 0.0)),
+    Key(0.5, pose(z=0.11, pelvis_pitch=-5.0, spine_pitch=25.0, neck_pitch=5.0),
+        hands=(0.22, -0.15, HAND_DOWN, 90.0), feet=(STAND_WIDTH / 2, 0.50, ANKLE_UP, 0.0)),
+    Key(1.3, pose(fwd=0.35, z=0.45, pelvis_pitch=45.0, spine_pitch=25.0, neck_pitch=-30.0, arm_flex=125.0,
+                  elbow=20.0), feet=(STAND_WIDTH / 2, 0.50, ANKLE_UP, 0.0)),
+    Key(2.2, pose(fwd=0.50), feet=(STAND_WIDTH / 2, 0.50, ANKLE_UP, 0.0)),
+    Key(2.7, pose(fwd=0.50), feet=(STAND_WIDTH / 2, 0.50, ANKLE_UP, 0.0)),
+]
+# Face up (head away from FORWARD): sit up onto the hands, draw the feet in, then as SIT_KEYS.
+SUPINE_KEYS = [
+    Key(0.0, pose(z=0.11, pelvis_pitch=-88.0, spine_pitch=0.0, neck_pitch=12.0),
+        hands=(0.30, -0.05, HAND_DOWN, 0.0), feet=(0.12, 0.86, 0.09, -60.0)),
+    Key(0.8, pose(z=0.11, pelvis_pitch=-35.0, spine_pitch=20.0, neck_pitch=10.0),
+        hands=(0.22, -0.15, HAND_DOWN, 90.0), feet=(0.12, 0.84, 0.09, -60.0)),
+]
+GETUPS: dict[str, list[Key]] = {
+    "getup_face_down": PRONE_GETUP,
+    "getup_face_up": SUPINE_KEYS + [Key(k.at + 1.6, k.body, k.hands, k.feet) for k in SIT_KEYS],
+    "getup_sitting": SIT_KEYS,
+}
+
+
+def keyed_clip(keys: list[Key]) -> Motion:
+    """Interpolate key poses (minimum-jerk between neighbours) and put hands and feet on their
+    targets by IK; unset targets come from the key's own arm and leg angles."""
+    skeleton = sample_skeleton()
+    idx = skeleton.index
+    # Each key's limb targets and foot rotations, filled in from its pose where not given.
+    key_values = np.array([_vector(k.body) for k in keys])
+    key_root, key_local = _fk_pose(skeleton, key_values)
+    key_pos, key_rot = forward_kinematics(skeleton, key_root, key_local, skeleton.offsets)
+    hands, feet, foot_rot, hand_rot = {}, {}, {}, {}
+    for side, s in SIDES.items():
+        hands[side] = np.array([key_pos[i, idx(f"hand.{side}")] if k.hands is None else _side_point(k.hands, s)
+                                for i, k in enumerate(keys)])
+        hand_rot[side] = np.array([key_rot[i, idx(f"hand.{side}")] if k.hands is None
+                                   else quat.mul(_rz(s * np.radians(k.hands[3])), _rx(-np.pi / 2))
+                                   for i, k in enumerate(keys)])
+        feet[side] = np.array([key_pos[i, idx(f"foot.{side}")] if k.feet is None else _side_point(k.feet, s)
+                               for i, k in enumerate(keys)])
+        foot_rot[side] = np.array([key_rot[i, idx(f"foot.{side}")] if k.feet is None
+                                   else _rx(np.radians(k.feet[3])) for i, k in enumerate(keys)])
+    times = np.array([k.at for k in keys])
+    count = int(round(times[-1] * FPS)) + 1
+    t = np.arange(count) / FPS
+    seg = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(keys) - 2)
+    e = _ease((t - times[seg]) / (times[seg + 1] - times[seg]))
+
+    def between(a: np.ndarray) -> np.ndarray:
+        w = e.reshape(-1, *([1] * (a.ndim - 1)))
+        return a[seg] + (a[seg + 1] - a[seg]) * w
+
+    u = np.clip((t - times[seg]) / (times[seg + 1] - times[seg]), 0.0, 1.0)
+    bump = 16.0 * u * u * (1.0 - u) * (1.0 - u)
+
+    def carried(a: np.ndarray) -> np.ndarray:
+        """A hand or foot moving to a new target lifts off on the way (half the distance, at
+        most 15 cm, highest half way), so it neither drags over nor digs into the floor."""
+        lift = np.minimum(0.5 * np.linalg.norm(a[seg + 1] - a[seg], axis=-1), 0.15)
+        return between(a) + (lift * bump)[:, None] * UP
+
+    root, local = _fk_pose(skeleton, between(key_values))
+    # Arms without a target keep their own angles (IK to where they would be anyway would twist
+    # them); between a planted and a free key the two solutions are blended.
+    planted = between(np.array([0.0 if k.hands is None else 1.0 for k in keys]))
+    for side in SIDES:
+        rot = quat.slerp(foot_rot[side][seg], foot_rot[side][seg + 1], e)
+        _leg_ik(skeleton, root, local, side, carried(feet[side]), rot)
+        arm = [idx(f"{b}.{side}") for b in ("upper_arm", "forearm", "hand")]
+        free = local[:, arm].copy()
+        _arm_ik(skeleton, root, local, side, carried(hands[side]),
+                quat.slerp(hand_rot[side][seg], hand_rot[side][seg + 1], e))
+        local[:, arm] = quat.slerp(free, local[:, arm], planted[:, None])
+    return _motion(skeleton, root, local)
+
+
+def _step_maker(name: str) -> Callable[[], Motion]:
+    def make() -> Motion:
+        return step_clip(STEPS[name])
+
+    make.__doc__ = f"The stepping reaction {name}: {STEPS[name]}"
+    return make
+
+
+def _getup_maker(name: str) -> Callable[[], Motion]:
+    def make() -> Motion:
+        return keyed_clip(GETUPS[name])
+
+    make.__doc__ = f"The keyframed get-up {name}."
+    return make
+
+
+CLIPS: dict[str, Callable[[], Motion]] = {
+    "walk": walk_clip,
+    "run": run_clip,
+    "idle": idle_clip,
+    **{name: _step_maker(name) for name in STEPS},
+    **{name: _getup_maker(name) for name in GETUPS},
+}
+LOCOMOTION = ("walk", "run", "idle")  # not reactions: kept out of the library
+
+
+def reaction_class(name: str) -> str:
+    """The class slug of a reaction clip: its name without the variant number."""
+    return name.rsplit("_", 1)[0]
+
+
+def library_toml() -> str:
+    """The reaction library's clip list (read by reactive_anim's library module)."""
+    lines = [
+        "# The reaction library over the clips in this folder, written by tools/make_sample_clips.py.",
+        "# One [[clip]] per reaction clip: file, class (a DESIGN.md slug), optional frames = [start, end]",
+        "# and optional next = the clip that follows it (a get-up after a fall).",
+        "# [[chain]] tables list clips reached only through `next` (the get-ups); they are no class.",
+        "#",
+        "# STILL MISSING: sway_balance, fall_forward_roll, fall_forward_hands, fall_backward_sit,",
+        "# fall_backward_hands and fall_side_knees. They will be made by physics (the ragdoll) and",
+        "# added here, each fall with next = the get-up that fits how it ends.",
+        "",
+    ]
+    for name in STEPS:
+        lines += ["[[clip]]", f'file = "{name}.bvh"', f'class = "{reaction_class(name)}"', ""]
+    for name in GETUPS:
+        lines += ["[[chain]]", f'file = "{name}.bvh"', ""]
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------------------------
+# Contact sheets: a stick figure per sampled frame, side and front view, as a PNG (no plotting
+# library needed: numpy draws, zlib packs).
+
+SHEET_CELL = (150, 200)  # width, height in pixels of one view
+SHEET_SCALE = 95.0  # pixels per metre
+
+
+def _png(image: np.ndarray) -> bytes:
+    """An RGB uint8 image (H, W, 3) as PNG bytes."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        body = kind + data
+        return struct.pack(">I", len(data)) + body + struct.pack(">I", zlib.crc32(body) & 0xFFFFFFFF)
+
+    h, w, _ = image.shape
+    raw = b"".join(b"\x00" + image[row].tobytes() for row in range(h))
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
+
+
+def _draw_line(image: np.ndarray, a: np.ndarray, b: np.ndarray, colour: tuple[int, int, int]) -> None:
+    n = int(np.max(np.abs(b - a))) * 2 + 2
+    pts = np.round(a + (b - a) * np.linspace(0, 1, n)[:, None]).astype(int)
+    for dx in (0, 1):
+        for dy in (0, 1):
+            x, y = pts[:, 0] + dx, pts[:, 1] + dy
+            ok = (x >= 0) & (x < image.shape[1]) & (y >= 0) & (y < image.shape[0])
+            image[y[ok], x[ok]] = colour
+
+
+def contact_sheet(motions: dict[str, Motion], columns: int = 8) -> np.ndarray:
+    """Rows of clips, `columns` evenly spaced frames each; per frame a side view (facing right)
+    and a front view. Left limbs blue, right red, trunk black, floor grey."""
+    cw, ch = SHEET_CELL
+    image = np.full((ch * len(motions), 2 * cw * columns, 3), 255, dtype=np.uint8)
+    for row, motion in enumerate(motions.values()):
+        sk = motion.skeleton
+        pos, rot = motion.global_transforms()
+        tips = {j: pos[:, j] + quat.rotate(rot[:, j], off) for j, off in sk.end_sites.items()}
+        for col, frame in enumerate(np.linspace(0, motion.num_frames - 1, columns).round().astype(int)):
+            for view in range(2):
+                ox, oy = (2 * col + view) * cw, row * ch
+                floor_y = oy + ch - 12
+                image[floor_y, ox + 4:ox + cw - 4] = (170, 170, 170)
+                image[oy:oy + ch, ox + cw - 1] = (220, 220, 220) if view == 0 else (120, 120, 120)
+                centre = pos[frame, 0]
+
+                def px(p: np.ndarray) -> np.ndarray:
+                    h = -(p[1] - centre[1]) if view == 0 else (p[0] - centre[0])
+                    return np.array([ox + cw / 2 + SHEET_SCALE * h, floor_y - SHEET_SCALE * p[2]])
+
+                for j in range(1, sk.num_joints):
+                    name = sk.names[j]
+                    colour = {".L": (40, 90, 220), ".R": (220, 50, 40)}.get(name[-2:], (0, 0, 0))
+                    _draw_line(image, px(pos[frame, sk.parents[j]]), px(pos[frame, j]), colour)
+                    if j in tips:
+                        _draw_line(image, px(pos[frame, j]), px(tips[j][frame]), colour)
+    return image
+
+
+def write_contact_sheets(out_dir: Path) -> list[Path]:
+    """One PNG per reaction class, one for the get-ups and one for locomotion, into out_dir."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    groups: dict[str, list[str]] = {"locomotion": list(LOCOMOTION), "getups": list(GETUPS)}
+    for name in STEPS:
+        groups.setdefault(reaction_class(name), []).append(name)
+    written = []
+    for group, names in groups.items():
+        path = out_dir / f"{group}.png"
+        path.write_bytes(_png(contact_sheet({n: CLIPS[n]() for n in names})))
+        written.append(path)
+    return written
+
+
 def write_clips(out_dir: Path) -> list[Path]:
-    """Write every clip in CLIPS as <name>.bvh (centimetres, Y up, ZXY: the common dialect)."""
+    """Write every clip in CLIPS as <name>.bvh (centimetres, Y up, ZXY: the common dialect) and
+    the reaction library's library.toml."""
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
     for name, make in CLIPS.items():
         path = out_dir / f"{name}.bvh"
         bvh.write_bvh(path, make(), rotation_order="ZXY", unit="cm", up="Y")
         written.append(path)
+    library = out_dir / "library.toml"
+    library.write_text(library_toml(), encoding="utf-8", newline="\n")
+    written.append(library)
     return written
 
 
@@ -511,8 +1193,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--out", type=Path, default=REPO / "sample_clips", help="output folder (default: sample_clips/)"
     )
+    parser.add_argument("--sheets", type=Path, help="also draw contact sheet PNGs into this folder (e.g. out/)")
     args = parser.parse_args(argv)
+    if args.sheets:
+        for path in write_contact_sheets(args.sheets):
+            print(f"drew {path}")
     for path in write_clips(args.out):
+        if path.suffix != ".bvh":
+            print(f"wrote {path}")
+            continue
         motion = bvh.read_bvh(path)
         seconds = motion.num_frames / motion.fps
         distance = np.linalg.norm(motion.root_pos[-1, :2] - motion.root_pos[0, :2])

@@ -1,5 +1,8 @@
-"""The committed sample clips: rebuilt byte for byte by tools/make_sample_clips.py, and a walk that
-is physically sane (named joints, planted feet, above the floor, smooth, looping, moving forward).
+"""The committed sample clips: rebuilt byte for byte by tools/make_sample_clips.py, and physically
+sane: a walk and a run that loop with planted feet, an idle stand, stepping reactions whose steps
+and centre of mass do what their class says, get-ups from the floor to standing, all above the
+floor, within anatomical joint ranges, smooth, and (the reactions) ending at rest; and a reaction
+library list that parses and points at files that exist.
 
 The tool lives in tools/, which is not a package, so it is imported from its file path.
 """
@@ -8,6 +11,7 @@ from __future__ import annotations
 
 import importlib.util
 import sys
+import tomllib
 from pathlib import Path
 from types import ModuleType
 
@@ -104,7 +108,8 @@ def period(motion: Motion) -> int:
 
 def test_regenerating_gives_byte_identical_files(tool: ModuleType, tmp_path: Path) -> None:
     written = tool.write_clips(tmp_path)
-    assert sorted(p.name for p in written) == sorted(p.name for p in CLIPS.glob("*.bvh"))
+    committed = [*CLIPS.glob("*.bvh"), CLIPS / "library.toml"]
+    assert sorted(p.name for p in written) == sorted(p.name for p in committed)
     for path in written:
         assert path.read_bytes() == (CLIPS / path.name).read_bytes(), f"{path.name} differs from sample_clips/"
 
@@ -219,3 +224,313 @@ def test_the_character_walks_the_way_it_faces(walk: Motion, walk_points: dict[st
         toes /= np.linalg.norm(toes, axis=1, keepdims=True)
         assert np.mean(toes @ travel) > 0.9
     assert travel @ np.array([0.0, -1.0]) > 0.99  # along -Y, the documented facing
+
+
+# ---------------------------------------------------------------------------------------------
+# Every clip
+
+
+ALL = sorted(p.stem for p in CLIPS.glob("*.bvh"))
+LOCOMOTION = ["walk", "run", "idle"]
+REACTIONS = [n for n in ALL if n.startswith("step")]
+GETUPS = [n for n in ALL if n.startswith("getup_")]
+CLASSES = ("step_forward", "steps_forward", "step_back", "steps_back", "sway_balance", "fall_forward_roll",
+           "fall_forward_hands", "fall_backward_sit", "fall_backward_hands", "fall_side_knees")
+FLOOR_TOLERANCE = 0.01
+MAX_TURN = 30.0  # rad/s between frames
+HEEL = np.array([0.0, 0.056, -0.068])  # heel below and behind the ankle in the rest pose (tool: HEEL_BACK)
+# Anatomical ranges, degrees. Hinges are measured as signed flexion about their axis (the knee
+# bends about +X, the elbow about -X, and nothing else may turn them); other joints as the total
+# angle of their rotation from the rest pose (standing, arms down), kept within a generous adult
+# range of motion: hip flexion up to 140 in a deep squat; shoulder elevation up to 180; a hand
+# flat on the floor under a near-vertical forearm is extended about 90, plus the forearm's
+# pronation this skeleton has no bone for; ankle plantarflexion of a lying foot about 65; toes
+# bent back up to 70 when kneeling on them; spine and neck joints share a bend over several
+# joints, so each turns only a little.
+HINGES = {"shin": (np.array([1.0, 0.0, 0.0]), 0.0, 150.0), "forearm": (np.array([-1.0, 0.0, 0.0]), 0.0, 150.0)}
+MAX_ROTATION = {"spine": 30.0, "spine.001": 30.0, "chest": 30.0, "neck": 45.0, "head": 45.0, "shoulder": 30.0,
+                "upper_arm": 180.0, "hand": 150.0, "thigh": 150.0, "foot": 70.0, "toe": 70.0}
+# Segment masses as fractions of body mass (Winter, Table 4.1), each placed at a joint of the
+# segment, for a centre of mass good enough to tell forward from backward.
+MASSES = {"pelvis": 0.142, "spine": 0.1, "spine.001": 0.1, "chest": 0.155, "head": 0.081, "upper_arm": 0.028,
+          "forearm": 0.016, "hand": 0.006, "thigh": 0.1, "shin": 0.0465, "foot": 0.0145}
+
+
+@pytest.fixture(scope="module")
+def clips() -> dict[str, Motion]:
+    return {name: bvh.read_bvh(CLIPS / f"{name}.bvh") for name in ALL}
+
+
+def world_points(motion: Motion) -> dict[str, np.ndarray]:
+    """World positions (T, 3) of every joint, every End Site ('<joint>.tip') and the heels."""
+    pos, rot = motion.global_transforms()
+    sk = motion.skeleton
+    points = {name: pos[:, j] for j, name in enumerate(sk.names)}
+    for j, offset in sk.end_sites.items():
+        points[sk.names[j] + ".tip"] = pos[:, j] + quat.rotate(rot[:, j], offset)
+    for side in "LR":
+        j = sk.index(f"foot.{side}")
+        points[f"heel.{side}"] = pos[:, j] + quat.rotate(rot[:, j], HEEL)
+    return points
+
+
+def sole_height(points: dict[str, np.ndarray], side: str) -> np.ndarray:
+    """How far (T,) a foot's lowest contact point (heel, ball, toe tip) is above where it is when
+    the foot stands flat."""
+    rest = {"heel": 0.0, "toe": 0.0245, "toe.tip": 0.0105}
+    return np.min([points[f"{part}.{side}" if part != "toe.tip" else f"toe.{side}.tip"][:, 2] - z
+                   for part, z in rest.items()], axis=0)
+
+
+def touchdowns(points: dict[str, np.ndarray]) -> list[tuple[str, int]]:
+    """(side, frame) of each time a foot comes down: its sole was over 2 cm up and is back within 5 mm."""
+    found = []
+    for side in "LR":
+        up = False
+        for frame, h in enumerate(sole_height(points, side)):
+            if h > 0.02:
+                up = True
+            elif up and h < 0.005:
+                found.append((side, frame))
+                up = False
+    return sorted(found, key=lambda item: item[1])
+
+
+def centre_of_mass(motion: Motion) -> np.ndarray:
+    pos = motion.global_positions()
+    weights = np.array([MASSES.get(name.split(".")[0] if name != "spine.001" else name, 0.0)
+                        for name in motion.skeleton.names])
+    return np.einsum("tjk,j->tk", pos, weights) / weights.sum()
+
+
+def facing(points: dict[str, np.ndarray], frame: int) -> np.ndarray:
+    """Unit ground direction the hips face at a frame: (left hip - right hip) x up."""
+    f = np.cross(points["thigh.L"][frame] - points["thigh.R"][frame], UP)[:2]
+    return f / np.linalg.norm(f)
+
+
+def test_there_are_locomotion_steps_and_getups() -> None:
+    assert set(LOCOMOTION) <= set(ALL)
+    for cls in ("step_forward", "steps_forward", "step_back", "steps_back"):
+        assert len([n for n in REACTIONS if n.rsplit("_", 1)[0] == cls]) >= 3, cls
+    assert set(GETUPS) == {"getup_face_down", "getup_face_up", "getup_sitting"}
+
+
+def test_the_folder_stays_small() -> None:
+    assert sum(p.stat().st_size for p in CLIPS.iterdir()) < 5_000_000
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_clip_is_on_the_sample_skeleton_at_60_fps(clips: dict[str, Motion], name: str) -> None:
+    motion = clips[name]
+    assert motion.skeleton.names == list(PARENTS)
+    assert motion.fps == pytest.approx(60.0)
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_no_foot_or_hand_below_the_floor(clips: dict[str, Motion], name: str) -> None:
+    points = world_points(clips[name])
+    ends = {k: v for k, v in points.items() if k.split(".")[0] in ("foot", "toe", "heel", "hand")}
+    lowest = min(ends, key=lambda k: ends[k][:, 2].min())
+    z = ends[lowest][:, 2]
+    assert z.min() > -FLOOR_TOLERANCE, f"{name}: {lowest} is {-z.min() * 100:.1f} cm under the floor @ {z.argmin()}"
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_joints_stay_within_anatomical_ranges(clips: dict[str, Motion], name: str) -> None:
+    motion = clips[name]
+    sk = motion.skeleton
+    for j, joint in enumerate(sk.names):
+        kind = joint.rsplit(".", 1)[0] if joint.endswith((".L", ".R")) else joint
+        q = motion.local_rot[:, j]
+        if kind in HINGES:
+            axis, low, high = HINGES[kind]
+            q = np.where(q[:, :1] < 0, -q, q)
+            flexion = np.degrees(2 * np.arctan2(q[:, 1:] @ axis, q[:, 0]))
+            off_axis = np.degrees(2 * np.arcsin(np.clip(np.linalg.norm(np.cross(q[:, 1:], axis), axis=1), 0, 1)))
+            assert off_axis.max() < 1.0, f"{name}: {joint} turns {off_axis.max():.1f} deg off its hinge"
+            assert flexion.min() >= low - 0.5 and flexion.max() <= high, (
+                f"{name}: {joint} flexes {flexion.min():.0f}..{flexion.max():.0f} deg, outside {low:.0f}..{high:.0f}")
+        elif kind in MAX_ROTATION:
+            angle = np.degrees(quat.angle_between(quat.identity(), q))
+            assert angle.max() <= MAX_ROTATION[kind], (
+                f"{name}: {joint} turns {angle.max():.0f} deg (limit {MAX_ROTATION[kind]:.0f}), frame {angle.argmax()}")
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_no_joint_turns_faster_than_30_rad_per_s_in_any_clip(clips: dict[str, Motion], name: str) -> None:
+    motion = clips[name]
+    speed = quat.angle_between(motion.local_rot[1:], motion.local_rot[:-1]) * motion.fps
+    frame, joint = np.unravel_index(np.argmax(speed), speed.shape)
+    joint_name = motion.skeleton.names[joint]
+    assert speed.max() < MAX_TURN, f"{name}: {joint_name} turns at {speed.max():.1f} rad/s at frame {frame}"
+
+
+@pytest.mark.parametrize("name", REACTIONS + GETUPS)
+def test_clip_ends_at_rest(clips: dict[str, Motion], name: str) -> None:
+    """The last 0.2 s: no joint moves more than 5 mm, no joint turns more than 1 degree."""
+    motion = clips[name]
+    tail = int(0.2 * motion.fps)
+    pos = motion.global_positions()[-tail:]
+    assert np.linalg.norm(pos - pos[-1], axis=-1).max() < 0.005
+    assert np.degrees(quat.angle_between(motion.local_rot[-tail:], motion.local_rot[-1])).max() < 1.0
+
+
+# ---------------------------------------------------------------------------------------------
+# Locomotion
+
+
+@pytest.mark.parametrize("name", LOCOMOTION)
+def test_locomotion_stance_feet_do_not_slide(clips: dict[str, Motion], name: str) -> None:
+    points = world_points(clips[name])
+    for part in FEET + ["toe.L.tip", "toe.R.tip"]:
+        slides = planted_slides(points[part], clips[name].fps)
+        assert slides and max(slides) < 0.02, f"{name}: {part} slides {max(slides) * 100:.1f} cm while planted"
+
+
+def test_run_is_a_loop_at_3_m_per_s_with_flight(clips: dict[str, Motion]) -> None:
+    run = clips["run"]
+    assert run.num_frames / run.fps >= 2.0
+    lag = period(run)
+    assert run.num_frames % lag == 0
+    stride = run.root_pos[lag] - run.root_pos[0]
+    assert 2.7 <= np.linalg.norm(stride[:2]) * run.fps / lag <= 3.3
+    assert stride @ np.array([0.0, -1.0, 0.0]) > 0
+    points = world_points(run)
+    airborne = (sole_height(points, "L") > 0.01) & (sole_height(points, "R") > 0.01)
+    # Two flights per cycle, each at least 3 frames (50 ms).
+    edges = np.flatnonzero(np.diff(airborne.astype(int)) == 1)
+    assert len(edges) >= 2 * (run.num_frames // lag) - 1
+    assert airborne.sum() >= 3 * 2 * (run.num_frames // lag)
+
+
+def test_idle_stands_still_and_loops(clips: dict[str, Motion]) -> None:
+    idle = clips["idle"]
+    assert idle.num_frames / idle.fps >= 4.0
+    points = world_points(idle)
+    assert np.ptp(idle.root_pos[:, :2], axis=0).max() < 0.05  # a weight shift, not a walk
+    assert points["pelvis"][:, 2].min() > 0.9 and points["head"][:, 2].min() > 1.5
+    # The frame after the last is the first: the seam is no bigger a step than any in the clip.
+    turns = quat.angle_between(idle.local_rot[1:], idle.local_rot[:-1]).max(axis=0)
+    assert np.all(quat.angle_between(idle.local_rot[-1], idle.local_rot[0]) <= turns + 1e-4)
+    moves = np.linalg.norm(np.diff(idle.root_pos, axis=0), axis=1)
+    assert np.linalg.norm(idle.root_pos[0] - idle.root_pos[-1]) <= moves.max() + 1e-5
+    # Something breathes: the chest moves, by a little.
+    assert 0.001 < np.ptp(idle.global_rotations()[:, idle.skeleton.index("chest"), 1]) < 0.1
+
+
+# ---------------------------------------------------------------------------------------------
+# Stepping reactions
+
+
+@pytest.mark.parametrize("name", REACTIONS)
+def test_step_clip_starts_from_the_standing_pose(clips: dict[str, Motion], name: str) -> None:
+    """Frame 0 is a pose the idle stand passes through: every joint within 5 degrees of idle's
+    first frame, the pelvis at the same height."""
+    first, idle = clips[name], clips["idle"]
+    diff = np.degrees(quat.angle_between(first.local_rot[0], idle.local_rot[0]))
+    assert diff.max() < 5.0, f"{name}: {first.skeleton.names[int(diff.argmax())]} is {diff.max():.1f} deg off standing"
+    assert first.root_pos[0, 2] == pytest.approx(idle.root_pos[0, 2], abs=0.01)
+
+
+@pytest.mark.parametrize("name", REACTIONS)
+def test_step_clip_moves_the_centre_of_mass_the_way_its_class_says(clips: dict[str, Motion], name: str) -> None:
+    motion = clips[name]
+    points = world_points(motion)
+    com = centre_of_mass(motion)
+    travel = (com[-1] - com[0])[:2] @ facing(points, 0)
+    if "forward" in name:
+        assert travel > 0.1, f"{name}: the centre of mass moves {travel:+.2f} m along the facing"
+    else:
+        assert travel < -0.1, f"{name}: the centre of mass moves {travel:+.2f} m along the facing"
+
+
+@pytest.mark.parametrize("name", REACTIONS)
+def test_step_clip_has_the_number_of_steps_its_class_says(clips: dict[str, Motion], name: str) -> None:
+    steps = touchdowns(world_points(clips[name]))
+    if name.startswith("steps_"):
+        assert len(steps) >= 2, f"{name}: touch-downs {steps}"
+    else:
+        assert len(steps) == 1, f"{name}: touch-downs {steps}"
+
+
+@pytest.mark.parametrize("name", REACTIONS)
+def test_step_clip_ends_standing(clips: dict[str, Motion], name: str) -> None:
+    points = world_points(clips[name])
+    assert points["pelvis"][-1, 2] > 0.8 and points["head"][-1, 2] > 1.4
+    for side in "LR":
+        assert abs(sole_height(points, side)[-1]) < 0.005, f"{name}: the {side} foot ends off the floor"
+
+
+def test_the_touchdown_count_notices_a_missing_step(clips: dict[str, Motion]) -> None:
+    """Guards the count: the standing idle has none, a walk has one per step."""
+    assert touchdowns(world_points(clips["idle"])) == []
+    assert len(touchdowns(world_points(clips["walk"]))) >= 7
+
+
+# ---------------------------------------------------------------------------------------------
+# Get-ups
+
+
+@pytest.mark.parametrize("name", GETUPS)
+def test_getup_goes_from_the_floor_to_standing(clips: dict[str, Motion], name: str) -> None:
+    points = world_points(clips[name])
+    assert points["pelvis"][0, 2] < 0.4, f"{name} starts with the pelvis at {points['pelvis'][0, 2]:.2f} m"
+    assert points["pelvis"][-1, 2] > 0.8 and points["head"][-1, 2] > 1.5
+    for side in "LR":
+        assert abs(sole_height(points, side)[-1]) < 0.005
+
+
+def test_getups_start_as_their_names_say(clips: dict[str, Motion]) -> None:
+    """Face down: the chest's front points at the floor; face up: at the sky; sitting: the trunk
+    is more up than lying and the feet are on the floor."""
+    def chest_front(name: str) -> np.ndarray:
+        motion = clips[name]
+        return quat.rotate(motion.global_rotations()[0, motion.skeleton.index("chest")], np.array([0.0, -1.0, 0.0]))
+
+    assert chest_front("getup_face_down")[2] < -0.8
+    assert chest_front("getup_face_up")[2] > 0.8
+    sitting = world_points(clips["getup_sitting"])
+    assert sitting["head"][0, 2] > 0.6 and sitting["pelvis"][0, 2] < 0.4
+
+
+# ---------------------------------------------------------------------------------------------
+# The reaction library's list
+
+
+@pytest.fixture(scope="module")
+def library() -> dict:
+    with open(CLIPS / "library.toml", "rb") as f:
+        return tomllib.load(f)
+
+
+def test_library_lists_every_reaction_with_a_known_class(library: dict) -> None:
+    assert set(library) <= {"clip", "chain"}
+    for clip in library["clip"]:
+        assert set(clip) <= {"file", "class", "frames", "next"}, clip
+        assert clip["class"] in CLASSES
+        assert (CLIPS / clip["file"]).is_file(), clip["file"]
+        if "next" in clip:
+            assert (CLIPS / clip["next"]).is_file(), clip["next"]
+        if "frames" in clip:
+            start, end = clip["frames"]
+            assert 0 <= start < end
+    listed = {clip["file"] for clip in library["clip"]}
+    assert listed == {f"{n}.bvh" for n in REACTIONS}
+    per_class = {c: sum(clip["class"] == c for clip in library["clip"]) for c in CLASSES}
+    assert all(n == 0 or n >= 3 for n in per_class.values()), per_class
+
+
+def test_library_chains_the_getups(library: dict) -> None:
+    for chain in library["chain"]:
+        assert set(chain) == {"file"}
+        assert (CLIPS / chain["file"]).is_file()
+    assert {c["file"] for c in library["chain"]} == {f"{n}.bvh" for n in GETUPS}
+    assert not {f"{n}.bvh" for n in LOCOMOTION} & {c["file"] for c in library["clip"] + library["chain"]}
+
+
+def test_library_says_which_classes_are_still_missing() -> None:
+    text = (CLIPS / "library.toml").read_text()
+    for cls in CLASSES[4:]:
+        assert cls in text
+    assert "MISSING" in text
