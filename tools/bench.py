@@ -11,40 +11,15 @@ by other work on the machine), with the run count printed beside it.
 
 from __future__ import annotations
 
-import json
 import os
 import sys
 import tempfile
 import time
-from collections.abc import Callable
 from pathlib import Path
 
+from bench_common import MOCAP, REPO, best_of, print_table, report
 
-REPO = Path(__file__).resolve().parents[1]
-MOCAP = REPO.parent / "shared" / "mocap"
-sys.path.insert(0, str(REPO))
-sys.path.insert(0, str(REPO / "tools"))
-
-from reactive_anim.core import bvh  # noqa: E402
-
-FIGURES: list[dict] = []
-
-
-def report(group: str, name: str, value: float, unit: str, **context) -> None:
-    """One figure: kept for the table and printed at once as a JSON line."""
-    row = {"group": group, "name": name, "value": round(value, 6), "unit": unit, **context}
-    FIGURES.append(row)
-    print(json.dumps(row), flush=True)
-
-
-def best_of(fn: Callable[[], object], runs: int) -> float:
-    """Fastest wall time of `runs` calls, in seconds."""
-    times = []
-    for _ in range(runs):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return min(times)
+from reactive_anim.core import bvh
 
 
 def largest_mocap() -> Path | None:
@@ -128,15 +103,14 @@ def bench_simulation() -> None:
     bench_sim(report)
 
 
-GROUPS = {"bvh": bench_bvh, "blender": bench_blender, "sim": bench_simulation}
+def bench_jump_search() -> None:
+    """Reference vs full vs class-narrowed jump search (figures defined in tools/bench_search.py)."""
+    from bench_search import bench_search
+
+    bench_search(report)
 
 
-def print_table() -> None:
-    print()
-    print(f"{'group':8s} {'figure':58s} {'value':>14s}  {'unit':9s} on")
-    for row in FIGURES:
-        on = row.get("clip") or row.get("file") or row.get("library") or ""
-        print(f"{row['group']:8s} {row['name']:58s} {row['value']:14.4f}  {row['unit']:9s} {on}")
+GROUPS = {"bvh": bench_bvh, "blender": bench_blender, "sim": bench_simulation, "search": bench_jump_search}
 
 
 def main(argv: list[str]) -> int:

@@ -10,17 +10,13 @@ how long pure PD tracking (CD) of a real walk stays within bounds.
 
 from __future__ import annotations
 
-import sys
-import time
 from collections.abc import Callable
 from pathlib import Path
 
-import mujoco
-import numpy as np
+from bench_common import MOCAP, REPO, best_of, print_table, report
 
-REPO = Path(__file__).resolve().parents[1]
-MOCAP = REPO.parent / "shared" / "mocap"
-sys.path.insert(0, str(REPO))
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402  (after bench_common limits BLAS to one core)
 
 from reactive_anim.core import bvh  # noqa: E402
 from reactive_anim.core.impact import Impact  # noqa: E402
@@ -29,15 +25,6 @@ from reactive_anim.core.simulate import simulate_impact, state_from_mocap, track
 
 RUNS = 5
 BANDAI_WALK = MOCAP / "bandai_namco" / "dataset-1" / "dataset-1_walk_normal_001.bvh"
-
-
-def _best_of(fn: Callable[[], object], runs: int = RUNS) -> float:
-    times = []
-    for _ in range(runs):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def _largest_skeleton() -> Path | None:
@@ -58,8 +45,8 @@ def _bench_clip(report, label: str, path: Path, use_reference: bool) -> None:
     context = {"clip": label, "joints": motion.skeleton.num_joints, "runs": RUNS}
     ragdoll = build_ragdoll(motion.skeleton, reference=reference)
     report("sim", "model build (roles, neutral pose, 2 compiles)",
-           _best_of(lambda: build_ragdoll(motion.skeleton, reference=reference)) * 1e3, "ms", **context)
-    report("sim", "MJCF compile", _best_of(lambda: mujoco.MjModel.from_xml_string(ragdoll.mjcf)) * 1e3, "ms", **context)
+           best_of(lambda: build_ragdoll(motion.skeleton, reference=reference), RUNS) * 1e3, "ms", **context)
+    report("sim", "MJCF compile", best_of(lambda: mujoco.MjModel.from_xml_string(ragdoll.mjcf), RUNS) * 1e3, "ms", **context)
 
     # Raw step cost: 0.25 s from the walk's state, floor at the mocap's ground, CD servos holding
     # the start pose (feet on the floor, a few contacts: the typical load).
@@ -78,13 +65,13 @@ def _bench_clip(report, label: str, path: Path, use_reference: bool) -> None:
         for _ in range(steps):
             mujoco.mj_step(ragdoll.model, data)
 
-    report("sim", "time per step", _best_of(stepping) / steps * 1e6, "us", bodies=len(ragdoll.bodies), **context)
+    report("sim", "time per step", best_of(stepping, RUNS) / steps * 1e6, "us", bodies=len(ragdoll.bodies), **context)
 
-    bc_time = _best_of(lambda: simulate_impact(ragdoll, motion, impact, window=0.25))
+    bc_time = best_of(lambda: simulate_impact(ragdoll, motion, impact, window=0.25), RUNS)
     report("sim", "BC window 0.25 s (state, impulse, steps, output Motion)", bc_time * 1e3, "ms", **context)
     bc = simulate_impact(ragdoll, motion, impact, window=0.25)
     target_start = min(int(bc.frames[-1]), motion.num_frames - 1)
-    cd_time = _best_of(lambda: track(ragdoll, bc.state, motion, 0.5, target_start=target_start))
+    cd_time = best_of(lambda: track(ragdoll, bc.state, motion, 0.5, target_start=target_start), RUNS)
     report("sim", "CD transition 0.5 s (PD tracking, output Motion)", cd_time * 1e3, "ms", **context)
     report("sim", "BC + CD", (bc_time + cd_time) * 1e3, "ms", **context)
 
@@ -129,9 +116,5 @@ def bench_sim(report: Callable[..., None]) -> None:
 
 
 if __name__ == "__main__":
-
-    def _print_report(group: str, name: str, value: float, unit: str, **context) -> None:
-        extra = ", ".join(f"{k}={v}" for k, v in context.items())
-        print(f"{group:4s} {name:58s} {value:10.3f} {unit:3s}  {extra}", flush=True)
-
-    bench_sim(_print_report)
+    bench_sim(report)
+    print_table()

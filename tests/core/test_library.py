@@ -1,0 +1,295 @@
+"""Reaction library (core/library.py, paper 2.4): manifest, compile, cache, errors naming the clip.
+
+Clips are made from the project's own sample walk (sample_clips/walk.bvh) with seeded smooth
+changes, written as BVH files into tmp_path, so these tests need no shared mocap.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from reactive_anim.core import bvh, quat
+from reactive_anim.core.errors import LibraryError
+from reactive_anim.core.library import CLASS_SLUGS, LibrarySettings, load_library, read_chains, read_manifest
+from reactive_anim.core.skeleton import Motion, Skeleton
+
+REPO = Path(__file__).resolve().parents[2]
+WALK = REPO / "sample_clips" / "walk.bvh"
+
+
+def make_clip(path: Path, seed: int, frames: int = 120, fps: float = 60.0) -> Path:
+    """A variant of the sample walk: smooth seeded joint wobble, given length and frame rate."""
+    walk = bvh.read_bvh(WALK)
+    rng = np.random.default_rng(seed)
+    start = int(rng.integers(0, walk.num_frames - frames)) if frames < walk.num_frames else 0
+    motion = walk.slice(start, start + min(frames, walk.num_frames))
+    t = np.arange(motion.num_frames)[:, None]
+    joints = motion.skeleton.num_joints
+    amp = rng.uniform(0.0, 0.25, (1, joints))
+    phase = rng.uniform(0, 2 * np.pi, (1, joints))
+    axis = rng.normal(size=(joints, 3))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    wobble = quat.from_axis_angle(np.broadcast_to(axis, (len(t), joints, 3)), amp * np.sin(0.07 * t + phase))
+    local_rot = quat.mul(motion.local_rot, wobble)
+    motion = Motion(motion.skeleton, fps, motion.root_pos, local_rot, motion.local_pos)
+    bvh.write_bvh(path, motion)
+    return path
+
+
+def write_toml(folder: Path, clips: list[dict]) -> Path:
+    lines = []
+    for clip in clips:
+        lines.append("[[clip]]")
+        for key, value in clip.items():
+            if isinstance(value, str):
+                lines.append(f'{key} = "{value}"')
+            elif isinstance(value, dict):
+                inner = ", ".join(f'{k} = "{v}"' for k, v in value.items())
+                lines.append(f"{key} = {{ {inner} }}")
+            else:
+                lines.append(f"{key} = {value}")
+        lines.append("")
+    path = folder / "library.toml"
+    path.write_text("\n".join(lines), encoding="utf-8")
+    return path
+
+
+@pytest.fixture
+def small_library(tmp_path: Path) -> Path:
+    folder = tmp_path / "lib"
+    folder.mkdir()
+    make_clip(folder / "a.bvh", 1, 120, 60.0)
+    make_clip(folder / "b.bvh", 2, 90, 30.0)
+    make_clip(folder / "c.bvh", 3, 200, 120.0)
+    write_toml(folder, [
+        {"file": "a.bvh", "class": "step_back", "next": "c.bvh"},
+        {"file": "b.bvh", "class": "step_forward", "frames": [10, 80]},
+        {"file": "c.bvh", "class": "step_back"},
+    ])  # fmt: skip
+    return folder
+
+
+class CountParses:
+    """Counts calls of bvh.parse_bvh (read_bvh goes through it) while patched in."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch):
+        self.calls = 0
+        original = bvh.parse_bvh
+
+        def counting(*args, **kwargs):
+            self.calls += 1
+            return original(*args, **kwargs)
+
+        monkeypatch.setattr(bvh, "parse_bvh", counting)
+
+
+def test_compile_groups_by_class_and_resamples(small_library: Path, tmp_path: Path) -> None:
+    lib = load_library(small_library, cache_dir=tmp_path / "cache")
+    # Class order first (step_forward before step_back in CLASS_SLUGS), then manifest order.
+    assert [c.name for c in lib.clips] == ["b.bvh", "a.bvh", "c.bvh"]
+    assert list(lib.class_ranges) == ["step_forward", "step_back"]
+    # Resampled to 30 fps: 120 frames at 60 fps span 119/60 s -> 60 frames; 200 at 120 -> 50; 70 at 30 -> 70.
+    assert [c.num_frames for c in lib.clips] == [70, 60, 50]
+    assert lib.num_frames == 180 and lib.class_ranges["step_back"] == (70, 180)
+    assert lib.clip("a.bvh").next == "c.bvh"
+    assert lib.clip("b.bvh").source_start == 10 and lib.clip("b.bvh").source_frame(5) == 15
+    assert lib.clip("c.bvh").source_frame(5) == pytest.approx(20.0)
+    for arr in (lib.pos_local, lib.heading, lib.ground, lib.rot):
+        assert arr.dtype == np.float32 and arr.flags.c_contiguous
+    assert lib.pos_local.shape == (180, 15, 3) and lib.rot.shape == (180, 15, 4)
+    assert np.array_equal(lib.frame_index[70:130], np.arange(60))
+
+
+def test_subfolders_by_class(tmp_path: Path) -> None:
+    for slug, seed in (("sway_balance", 1), ("fall_side_knees", 2)):
+        (tmp_path / "lib" / slug).mkdir(parents=True)
+        make_clip(tmp_path / "lib" / slug / f"clip{seed}.bvh", seed, 60, 30.0)
+    lib = load_library(tmp_path / "lib", cache_dir=tmp_path / "cache")
+    assert [c.reaction_class for c in lib.clips] == ["sway_balance", "fall_side_knees"]
+    assert [c.name for c in lib.clips] == ["sway_balance/clip1.bvh", "fall_side_knees/clip2.bvh"]
+
+
+def test_second_load_reads_only_the_cache(small_library: Path, tmp_path: Path, monkeypatch) -> None:
+    parses = CountParses(monkeypatch)
+    first = load_library(small_library, cache_dir=tmp_path / "cache")
+    assert parses.calls == 3 and not first.loaded_from_cache
+    second = load_library(small_library, cache_dir=tmp_path / "cache")
+    assert parses.calls == 3, "an unchanged library must not parse any BVH file again"
+    assert second.loaded_from_cache and second.cache_path == first.cache_path
+    for name in ("pos_local", "heading", "ground", "rot", "clip_index", "frame_index"):
+        assert np.array_equal(getattr(first, name), getattr(second, name))
+    assert [vars(c) for c in first.clips] == [vars(c) for c in second.clips]
+
+
+def test_second_load_reads_no_clip_bytes(small_library: Path, tmp_path: Path, monkeypatch) -> None:
+    """Timing-free evidence: after the first load, reading any clip file fails, yet the second
+    load succeeds from the cache (the clips' hashes are remembered by size and mtime)."""
+    first = load_library(small_library, cache_dir=tmp_path / "cache")
+    original = Path.read_bytes
+
+    def refuse(self: Path) -> bytes:
+        if self.suffix == ".bvh":
+            raise AssertionError(f"{self.name} was read on a cached load")
+        return original(self)
+
+    monkeypatch.setattr(Path, "read_bytes", refuse)
+    monkeypatch.setattr(bvh, "parse_bvh", lambda *a, **k: pytest.fail("a BVH file was parsed on a cached load"))
+    second = load_library(small_library, cache_dir=tmp_path / "cache")
+    assert second.loaded_from_cache and np.array_equal(first.pos_local, second.pos_local)
+
+
+def test_editing_a_clip_or_the_manifest_invalidates(small_library: Path, tmp_path: Path, monkeypatch) -> None:
+    cache = tmp_path / "cache"
+    first = load_library(small_library, cache_dir=cache)
+    make_clip(small_library / "c.bvh", 99, 200, 120.0)  # same name, new content
+    parses = CountParses(monkeypatch)
+    edited = load_library(small_library, cache_dir=cache)
+    assert parses.calls == 3 and not edited.loaded_from_cache
+    assert edited.cache_path != first.cache_path
+    a, b = edited.class_ranges["step_back"]
+    assert not np.allclose(first.pos_local[a:b], edited.pos_local[a:b])
+    # The manifest and the settings are part of the key too.
+    text = (small_library / "library.toml").read_text().replace('"step_forward"', '"sway_balance"')
+    (small_library / "library.toml").write_text(text)
+    assert not load_library(small_library, cache_dir=cache).loaded_from_cache
+    assert not load_library(small_library, LibrarySettings(window=6), cache_dir=cache).loaded_from_cache
+    assert load_library(small_library, LibrarySettings(window=6), cache_dir=cache).loaded_from_cache
+
+
+def test_damaged_cache_is_rebuilt(small_library: Path, tmp_path: Path) -> None:
+    lib = load_library(small_library, cache_dir=tmp_path / "cache")
+    lib.cache_path.write_bytes(b"not an npz")
+    again = load_library(small_library, cache_dir=tmp_path / "cache")
+    assert not again.loaded_from_cache and np.array_equal(again.rot, lib.rot)
+
+
+# ---------------------------------------------------------------------------------------------
+# Errors name the clip
+
+
+def test_unknown_class_slug_names_the_clip(tmp_path: Path) -> None:
+    make_clip(tmp_path / "a.bvh", 1, 60, 30.0)
+    write_toml(tmp_path, [{"file": "a.bvh", "class": "fall_down_stairs"}])
+    with pytest.raises(LibraryError, match=r"clip 'a\.bvh'.*unknown reaction class 'fall_down_stairs'"):
+        load_library(tmp_path, cache_dir=tmp_path / "cache")
+
+
+def test_unknown_class_folder_names_the_clip(tmp_path: Path) -> None:
+    (tmp_path / "lib" / "tumble").mkdir(parents=True)
+    make_clip(tmp_path / "lib" / "tumble" / "x.bvh", 1, 60, 30.0)
+    with pytest.raises(LibraryError, match=r"clip 'tumble/x\.bvh'.*'tumble' is not a reaction class"):
+        load_library(tmp_path / "lib", cache_dir=tmp_path / "cache")
+
+
+def test_missing_file_names_the_clip(tmp_path: Path) -> None:
+    make_clip(tmp_path / "a.bvh", 1, 60, 30.0)
+    write_toml(tmp_path, [{"file": "a.bvh", "class": "step_back"}, {"file": "gone.bvh", "class": "step_back"}])
+    with pytest.raises(LibraryError, match=r"clip 'gone\.bvh': file not found"):
+        load_library(tmp_path, cache_dir=tmp_path / "cache")
+
+
+def test_class_with_no_clips_when_asked(small_library: Path, tmp_path: Path) -> None:
+    lib = load_library(small_library, cache_dir=tmp_path / "cache")
+    with pytest.raises(LibraryError, match=r"no clips of class 'fall_forward_roll'.*step_forward \(1 clips\)"):
+        lib.require_class("fall_forward_roll")
+    with pytest.raises(LibraryError, match=r"unknown reaction class 'falling'"):
+        lib.require_class("falling")
+
+
+def test_clip_shorter_than_the_window_names_the_clip(tmp_path: Path) -> None:
+    make_clip(tmp_path / "long.bvh", 1, 60, 30.0)
+    make_clip(tmp_path / "short.bvh", 2, 12, 60.0)  # 12 frames at 60 fps -> 6 at 30 < 8
+    write_toml(tmp_path, [{"file": "long.bvh", "class": "step_back"}, {"file": "short.bvh", "class": "step_back"}])
+    message = r"clip 'short\.bvh': 6 frames at 30 fps \(12 in the file at 60 fps\) is shorter than the 8-frame"
+    with pytest.raises(LibraryError, match=message):
+        load_library(tmp_path, cache_dir=tmp_path / "cache")
+    # A frame range can make a clip too short as well.
+    write_toml(tmp_path, [{"file": "long.bvh", "class": "step_back", "frames": [0, 5]}])
+    with pytest.raises(LibraryError, match=r"clip 'long\.bvh'.*shorter than the 8-frame"):
+        load_library(tmp_path, cache_dir=tmp_path / "cache")
+
+
+def test_skeleton_without_roles_names_the_clip(tmp_path: Path) -> None:
+    skeleton = Skeleton(["Hips", "Spine", "Head"], [-1, 0, 1], [[0, 0, 1.0], [0, 0, 0.3], [0, 0, 0.4]])
+    frames = 30
+    motion = Motion(skeleton, 30.0, np.zeros((frames, 3)), quat.identity((frames, 3)))
+    bvh.write_bvh(tmp_path / "stick.bvh", motion)
+    write_toml(tmp_path, [{"file": "stick.bvh", "class": "sway_balance"}])
+    message = r"clip 'stick\.bvh': its skeleton lacks joint roles the search needs: .*hip_l"
+    with pytest.raises(LibraryError, match=message):
+        load_library(tmp_path, cache_dir=tmp_path / "cache")
+
+
+def test_unreadable_bvh_names_the_clip(tmp_path: Path) -> None:
+    (tmp_path / "bad.bvh").write_text("HIERARCHY\nROOT Hips\n{\n")
+    write_toml(tmp_path, [{"file": "bad.bvh", "class": "sway_balance"}])
+    with pytest.raises(LibraryError, match=r"clip 'bad\.bvh': .*bad\.bvh, line"):
+        load_library(tmp_path, cache_dir=tmp_path / "cache")
+
+
+def test_manifest_errors_name_the_clip(tmp_path: Path) -> None:
+    make_clip(tmp_path / "a.bvh", 1, 60, 30.0)
+    cases = [
+        ({"file": "a.bvh", "class": "step_back", "next": "b.bvh"}, r"clip 'a\.bvh': next = 'b\.bvh' is neither a \[\[clip\]\] nor"),
+        ({"file": "a.bvh", "class": "step_back", "frames": [5, 2]}, r"clip 'a\.bvh': frames \[5, 2\] is not a range"),
+        ({"file": "a.bvh", "class": "step_back", "frames": [0, 500]},
+         r"clip 'a\.bvh': frames \[0, 500\] run past the file's 60 frames"),
+        ({"file": "a.bvh", "class": "step_back", "speed": 2}, r"clip 'a\.bvh': unknown keys speed"),
+    ]
+    for clip, message in cases:
+        write_toml(tmp_path, [clip])
+        with pytest.raises(LibraryError, match=message):
+            load_library(tmp_path, cache_dir=tmp_path / "cache")
+
+
+def test_role_overrides_per_clip(tmp_path: Path) -> None:
+    make_clip(tmp_path / "a.bvh", 1, 60, 30.0)
+    write_toml(tmp_path, [{"file": "a.bvh", "class": "step_back", "roles": {"ankle_l": "toe.L"}}])
+    entries = read_manifest(tmp_path)
+    assert dict(entries[0].roles) == {"ankle_l": "toe.L"}
+    plain = tmp_path / "plain"
+    plain.mkdir()
+    write_toml(plain, [{"file": str(tmp_path / "a.bvh"), "class": "step_back"}])
+    a = load_library(tmp_path, cache_dir=tmp_path / "c1")
+    b = load_library(plain / "library.toml", cache_dir=tmp_path / "c2")
+    ankle_l = 13  # SEARCH_ROLES index
+    assert not np.allclose(a.pos_local[:, ankle_l], b.pos_local[:, ankle_l])  # the left ankle moved to the toe
+    others = [j for j in range(15) if j != ankle_l]
+    assert np.allclose(a.pos_local[:, others], b.pos_local[:, others])
+
+
+def test_class_slugs_are_the_papers_ten() -> None:
+    assert CLASS_SLUGS == (
+        "step_forward", "steps_forward", "step_back", "steps_back", "sway_balance",
+        "fall_forward_roll", "fall_forward_hands", "fall_backward_sit", "fall_backward_hands", "fall_side_knees",
+    )  # fmt: skip
+
+
+def test_next_may_name_a_chained_clip_that_is_not_searched(tmp_path: Path) -> None:
+    make_clip(tmp_path / "fall.bvh", 1, 60, 30.0)
+    make_clip(tmp_path / "getup.bvh", 2, 60, 30.0)
+    (tmp_path / "library.toml").write_text(
+        '[[clip]]\nfile = "fall.bvh"\nclass = "fall_backward_sit"\nnext = "getup.bvh"\n\n[[chain]]\nfile = "getup.bvh"\n',
+        encoding="utf-8",
+    )
+    lib = load_library(tmp_path, cache_dir=tmp_path / "cache")
+    assert [c.name for c in lib.clips] == ["fall.bvh"]  # the get-up is no search candidate
+    assert lib.clip("fall.bvh").next == "getup.bvh"
+    assert read_chains(tmp_path) == {"getup.bvh": tmp_path / "getup.bvh"}
+    (tmp_path / "getup.bvh").unlink()
+    with pytest.raises(LibraryError, match=r"clip 'getup\.bvh': file not found"):
+        load_library(tmp_path, cache_dir=tmp_path / "cache")
+
+
+def test_the_sample_library_loads(tmp_path: Path) -> None:
+    """The project's own clips (sample_clips/) form a library; every class present has 3+ clips."""
+    folder = REPO / "sample_clips"
+    lib = load_library(folder, cache_dir=tmp_path / "cache")
+    chains = read_chains(folder)
+    for slug in lib.class_ranges:
+        assert sum(c.reaction_class == slug for c in lib.clips) >= 3, slug
+    assert all(c.next is None or c.next in chains for c in lib.clips)
+    assert {"step_forward", "steps_forward", "step_back", "steps_back"} <= set(lib.class_ranges)

@@ -1,0 +1,300 @@
+"""The jump search (core/search.py, paper 2.4, Eq. 1, Table 2): exact, alignment-invariant, fast.
+
+- Fast equals the one-candidate-at-a-time reference (tests/core/search_reference.py) in match and
+  cost on random queries (synthetic library) and real ones (shared mocap), ties included.
+- Turning and moving the query on the ground changes neither the match nor the cost.
+- Retrieval on the real mocap library: 200 perturbed windows found in their own clip.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from reactive_anim.core import bvh, quat
+from reactive_anim.core.errors import LibraryError
+from reactive_anim.core.library import load_library
+from reactive_anim.core.search import (
+    SEARCH_ROLES,
+    TABLE2_POSITION_WEIGHTS,
+    TABLE2_ROTATION_WEIGHTS,
+    FrameFeatures,
+    Query,
+    find_best,
+    joint_weights,
+    query_from_motion,
+    search,
+    search_with_fallback,
+)
+from reactive_anim.core.skeleton import Motion
+from tests.conftest import MOCAP, mocap_files
+from tests.core.search_reference import reference_cost, reference_search
+from tests.core.test_library import make_clip, write_toml
+
+
+@pytest.fixture(scope="module")
+def synthetic(tmp_path_factory) -> object:
+    """Eight wobbled sample walks in four classes, at 30, 60 and 120 fps (about 900 frames)."""
+    folder = tmp_path_factory.mktemp("synthetic")
+    classes = ["step_forward", "step_back", "sway_balance", "fall_side_knees"]
+    clips = []
+    for k in range(8):
+        fps = (30.0, 60.0, 120.0)[k % 3]
+        make_clip(folder / f"clip{k}.bvh", 100 + k, frames=int(3.5 * fps) if fps < 120 else 260, fps=fps)
+        clips.append({"file": f"clip{k}.bvh", "class": classes[k % 4]})
+    write_toml(folder, clips)
+    return load_library(folder, cache_dir=folder / "cache")
+
+
+def random_query(library, rng: np.random.Generator, noise_m: float, noise_rad: float) -> Query:
+    """A window of the library, perturbed, turned and moved (features level)."""
+    clip = int(rng.integers(len(library.clips)))
+    start = library.clip_start(clip) + int(rng.integers(library.clips[clip].num_frames - library.window + 1))
+    return perturbed(library.features(start, start + library.window), rng, noise_m, noise_rad)
+
+
+def perturbed(f: FrameFeatures, rng: np.random.Generator, noise_m: float, noise_rad: float) -> Query:
+    """Joint positions moved by noise_m (random directions), rotations by noise_rad, heading by
+    noise_rad, and the whole window turned by a random yaw and moved up to 50 m on the ground."""
+    shape = f.pos_local.shape[:-1]
+    direction = rng.normal(size=shape + (3,))
+    direction /= np.linalg.norm(direction, axis=-1, keepdims=True)
+    pos_local = f.pos_local + noise_m * direction
+    axis = rng.normal(size=shape + (3,))
+    axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+    rot = quat.mul(f.rot, quat.from_axis_angle(axis, np.full(shape, noise_rad)))
+    yaw = rng.uniform(-np.pi, np.pi)
+    c, s = np.cos(yaw), np.sin(yaw)
+    ground = f.ground @ np.array([[c, s], [-s, c]]) + rng.uniform(-50, 50, 2)
+    heading = f.heading + yaw + rng.normal(0.0, noise_rad, f.heading.shape)
+    return Query(FrameFeatures(pos_local, heading, ground, rot))
+
+
+def assert_same(library, query: Query, classes=None) -> None:
+    start, cost, evaluated = find_best(library, query, classes)
+    ref_start, ref_cost = reference_search(library, query, classes)
+    assert start == ref_start, f"fast {start} (cost {cost}) vs reference {ref_start} (cost {ref_cost})"
+    assert cost == pytest.approx(ref_cost, rel=1e-5, abs=1e-9)
+
+
+def test_weights_are_table2() -> None:
+    wp, wq = joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS)
+    by_role = dict(zip(SEARCH_ROLES, zip(wp, wq)))
+    assert by_role["neck"] == (0.4, 0.3) and by_role["back"] == (0.4, 0.4) and by_role["waist"] == (0.6, 0.6)
+    for side in "lr":
+        assert by_role[f"hip_{side}"] == (0.8, 1.0) and by_role[f"knee_{side}"] == (0.6, 0.8)
+        assert by_role[f"shoulder_{side}"] == (0.6, 0.4) and by_role[f"elbow_{side}"] == (0.6, 0.4)
+        assert by_role[f"wrist_{side}"] == (0.2, 0.2) and by_role[f"ankle_{side}"] == (0.1, 0.1)
+
+
+def test_reference_cost_is_zero_for_the_window_itself(synthetic) -> None:
+    start = synthetic.clip_start(3) + 5
+    query = Query(synthetic.features(start, start + synthetic.window))
+    assert reference_cost(synthetic, start, query) == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("noise", [(0.01, 0.02), (0.05, 0.1), (0.3, 0.5)])
+def test_fast_equals_reference_on_random_queries(synthetic, noise) -> None:
+    rng = np.random.default_rng(int(noise[0] * 1000))
+    for _ in range(3):
+        assert_same(synthetic, random_query(synthetic, rng, *noise))
+    assert_same(synthetic, random_query(synthetic, rng, *noise), ["sway_balance", "step_back"])
+
+
+def test_fast_equals_reference_on_unrelated_queries(synthetic, tmp_path: Path) -> None:
+    """Queries from clips that are not in the library, at other frame rates."""
+    rng = np.random.default_rng(7)
+    for k, fps in enumerate((24.0, 60.0, 100.0)):
+        motion = bvh.read_bvh(make_clip(tmp_path / f"other{k}.bvh", 500 + k, 150, fps))
+        start = float(rng.uniform(0, motion.num_frames - 0.4 * fps))
+        query = query_from_motion(motion, start, synthetic.window, synthetic.fps)
+        assert_same(synthetic, query)
+
+
+def test_ties_go_to_the_lowest_class_clip_frame(tmp_path: Path) -> None:
+    """Identical clips give identical costs; the first in (class, clip, frame) order wins."""
+    make_clip(tmp_path / "a.bvh", 3, 90, 30.0)
+    (tmp_path / "b.bvh").write_bytes((tmp_path / "a.bvh").read_bytes())
+    (tmp_path / "c.bvh").write_bytes((tmp_path / "a.bvh").read_bytes())
+    write_toml(tmp_path, [
+        {"file": "a.bvh", "class": "sway_balance"},
+        {"file": "b.bvh", "class": "step_back"},  # an earlier class than a.bvh's
+        {"file": "c.bvh", "class": "step_back"},
+    ])  # fmt: skip
+    lib = load_library(tmp_path, cache_dir=tmp_path / "cache")
+    assert [c.name for c in lib.clips] == ["b.bvh", "c.bvh", "a.bvh"]
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        start = lib.clip_start(2) + int(rng.integers(0, 80))
+        query = perturbed(lib.features(start, start + lib.window), rng, 0.02, 0.03)
+        match = search(lib, query)
+        assert match.clip == "b.bvh"
+        ref_start, ref_cost = reference_search(lib, query)
+        assert lib.clip_index[ref_start] == 0 and match.cost == pytest.approx(ref_cost, rel=1e-5)
+        assert search(lib, query, ["sway_balance"]).clip == "a.bvh"
+
+
+def rotated_motion(motion: Motion, yaw: float, shift: np.ndarray) -> Motion:
+    """The motion turned by `yaw` about the vertical through the origin and moved on the ground."""
+    turn = quat.from_axis_angle(np.array([0.0, 0.0, 1.0]), np.array(yaw))
+    local_rot = motion.local_rot.copy()
+    local_rot[:, 0] = quat.mul(turn, local_rot[:, 0])
+    root = quat.rotate(turn, motion.root_pos) + np.array([shift[0], shift[1], 0.0])
+    return Motion(motion.skeleton, motion.fps, root, local_rot, motion.local_pos)
+
+
+def test_turning_and_moving_the_query_changes_nothing(synthetic, tmp_path: Path) -> None:
+    motion = bvh.read_bvh(make_clip(tmp_path / "q.bvh", 77, 150, 60.0))
+    rng = np.random.default_rng(11)
+    for start in (3.0, 40.5, 90.0):
+        base = search(synthetic, query_from_motion(motion, start, synthetic.window, synthetic.fps))
+        for yaw, shift in ((0.7, (0.0, 0.0)), (-2.9, (3.0, -1.0)), (np.pi, (-120.0, 85.0))) + (
+            (rng.uniform(-np.pi, np.pi), rng.uniform(-500, 500, 2)),
+        ):
+            turned = rotated_motion(motion, yaw, np.asarray(shift))
+            moved = query_from_motion(turned, start, synthetic.window, synthetic.fps)
+            match = search(synthetic, moved)
+            assert (match.clip, match.frame) == (base.clip, base.frame)
+            assert match.cost == pytest.approx(base.cost, rel=1e-5, abs=1e-5)
+            # The returned placement moves with the query.
+            assert np.angle(np.exp(1j * (match.yaw - base.yaw - yaw))) == pytest.approx(0.0, abs=1e-5)
+
+
+def test_match_places_the_clip_on_the_query(synthetic) -> None:
+    """Applying (yaw, offset) to the clip's first frame puts its pelvis on the query's."""
+    rng = np.random.default_rng(5)
+    query = random_query(synthetic, rng, 0.0, 0.0)
+    match = search(synthetic, query)
+    assert match.cost == pytest.approx(0.0, abs=1e-4)
+    start = synthetic.clip_start(match.clip_index) + match.frame
+    g = synthetic.ground[start].astype(float)
+    c, s = np.cos(match.yaw), np.sin(match.yaw)
+    placed = np.array([c * g[0] - s * g[1], s * g[0] + c * g[1]]) + match.offset
+    assert placed == pytest.approx(query.features.ground[0], abs=1e-4)
+
+
+def test_threshold_and_fallback(synthetic) -> None:
+    rng = np.random.default_rng(9)
+    clip = next(k for k, c in enumerate(synthetic.clips) if c.reaction_class == "step_back")
+    start = synthetic.clip_start(clip) + 10
+    query = perturbed(synthetic.features(start, start + synthetic.window), rng, 0.01, 0.01)
+    own = synthetic.clips[clip].reaction_class
+    best = search(synthetic, query)
+    assert best.reaction_class == own and best.scope == "all" and best.accepted
+    other = search(synthetic, query, ["step_forward"], threshold=best.cost * 1.01)
+    assert other.reaction_class == "step_forward" and not other.accepted and other.cost > best.cost
+    fell = search_with_fallback(synthetic, query, ["step_forward", own], threshold=best.cost * 1.01)
+    assert fell.scope == own and fell.accepted and fell.clip == best.clip
+    wide = search_with_fallback(synthetic, query, ["step_forward", "fall_side_knees"], threshold=best.cost * 1.01)
+    assert wide.scope == "all" and wide.clip == best.clip and wide.accepted
+    nothing = search_with_fallback(synthetic, query, ["step_forward"], threshold=best.cost * 0.5)
+    assert nothing.scope == "all" and not nothing.accepted
+    # A class the library lacks is passed over; an unknown slug is an error.
+    skipped = search_with_fallback(synthetic, query, ["fall_forward_roll", own], threshold=best.cost * 1.01)
+    assert skipped.scope == own and skipped.accepted
+    with pytest.raises(LibraryError, match="unknown reaction class 'tumble'"):
+        search_with_fallback(synthetic, query, ["tumble"], threshold=1.0)
+
+
+def test_search_errors(synthetic) -> None:
+    start = synthetic.clip_start(0)
+    query = Query(synthetic.features(start, start + synthetic.window))
+    with pytest.raises(LibraryError, match="no clips of class 'fall_forward_roll'"):
+        search(synthetic, query, ["fall_forward_roll"])
+    with pytest.raises(LibraryError, match="unknown reaction class 'jump'"):
+        search(synthetic, query, ["jump"])
+    short = Query(synthetic.features(start, start + 5))
+    with pytest.raises(LibraryError, match="query window has 5 frames but the library was compiled for 8"):
+        search(synthetic, short)
+    motion = bvh.read_bvh(Path(synthetic.clips[0].path))
+    with pytest.raises(LibraryError, match="runs past the motion"):
+        query_from_motion(motion, motion.num_frames - 2, synthetic.window, synthetic.fps)
+
+
+# ---------------------------------------------------------------------------------------------
+# Real mocap
+
+
+def mocap_class(path: Path) -> str:
+    """Classes for the shared locomotion clips, by file name (what is measured is the search)."""
+    name = path.name
+    if name in ("90_18.bvh",):
+        return "fall_backward_sit"
+    if name in ("91_59.bvh",):
+        return "fall_side_knees"
+    if name in ("139_16.bvh",):
+        return "fall_forward_hands"
+    if "walk-back" in name:
+        return "steps_back"
+    if "turn" in name or "walk-left" in name or "walk-right" in name:
+        return "sway_balance"
+    if "walk" in name:
+        return "steps_forward"
+    if "run" in name or "dash" in name:
+        return "step_forward"
+    if path.parent.name == "cmu_iclone":
+        return "step_back"
+    return "fall_forward_roll"  # kick, punch, slash, respond
+
+
+def mocap_library(folder: Path, files: list[Path]):
+    clips = [{"file": str(p), "class": mocap_class(p)} for p in files]
+    write_toml(folder, clips)
+    return load_library(folder / "library.toml", cache_dir=folder / "cache")
+
+
+@pytest.fixture(scope="module")
+def real_library(tmp_path_factory):
+    files = mocap_files()
+    if not files:
+        pytest.skip(f"real mocap not available: no BVH files under {MOCAP} (../shared/mocap is test-only data)")
+    return mocap_library(tmp_path_factory.mktemp("real"), files)
+
+
+def test_fast_equals_reference_on_real_mocap(tmp_path: Path) -> None:
+    """A small real library (reference scans are slow) against windows of clips not in it."""
+    names = [
+        "bandai_namco/dataset-1/dataset-1_walk_normal_001.bvh",
+        "bandai_namco/dataset-1/dataset-1_run_normal_001.bvh",
+        "bandai_namco/dataset-1/dataset-1_walk-back_normal_001.bvh",
+        "cmu/91_59.bvh",
+        "cmu_iclone/007_12.bvh",
+    ]
+    files = [MOCAP / n for n in names]
+    if not all(p.is_file() for p in files):
+        pytest.skip(f"real mocap not available under {MOCAP} (../shared/mocap is test-only data)")
+    lib = mocap_library(tmp_path, files)
+    rng = np.random.default_rng(21)
+    for name in ("bandai_namco/dataset-2/dataset-2_walk_normal_001.bvh", "cmu_iclone/002_01.bvh", "cmu/90_18.bvh"):
+        motion = bvh.read_bvh(MOCAP / name)
+        start = float(rng.uniform(0, motion.num_frames - 0.4 * motion.fps))
+        assert_same(lib, query_from_motion(motion, start, lib.window, lib.fps))
+    for _ in range(2):
+        assert_same(lib, random_query(lib, rng, 0.02, 0.02))
+
+
+def test_retrieval_on_real_mocap(real_library) -> None:
+    """A window cut from a library clip, turned, moved and perturbed (1 cm, 1 degree) is found
+    in the same clip within 2 frames in at least 95% of 200 trials."""
+    lib = real_library
+    rng = np.random.default_rng(2026)
+    hits = 0
+    misses = []
+    for _ in range(200):
+        clip = int(rng.integers(len(lib.clips)))
+        frame = int(rng.integers(lib.clips[clip].num_frames - lib.window + 1))
+        start = lib.clip_start(clip) + frame
+        query = perturbed(lib.features(start, start + lib.window), rng, 0.01, np.radians(1.0))
+        match = search(lib, query)
+        if match.clip_index == clip and abs(match.frame - frame) <= 2:
+            hits += 1
+        else:
+            misses.append((lib.clips[clip].name, frame, match.clip, match.frame))
+    rate = hits / 200
+    print(f"\nretrieval on the real mocap library ({lib.num_frames} frames, {len(lib.clips)} clips): "
+          f"{hits}/200 = {rate:.1%} within 2 frames of the right clip")  # fmt: skip
+    for miss in misses[:10]:
+        print("  miss:", miss)
+    assert rate >= 0.95
