@@ -20,7 +20,8 @@ Everything is deterministic (no randomness), so regenerating gives byte-identica
 To add a clip: write a function returning a Motion on `sample_skeleton()` and list it in CLIPS.
 Clip families are parameter tables: a walk or run is a `Gait`, a stepping reaction a `Push` row
 of STEPS (a pendulum balance model decides the steps), a get-up a list of key poses in GETUPS.
-The fall and sway reactions are still missing: they are to come from the ragdoll (physics).
+Falls come from the ragdoll (physics) and sways from the pendulum with planted feet: both in
+tools/sample_falls.py, listed in CLIPS here.
 
 World: metres, Z up; the character faces -Y (Blender's convention: the front view looks along +Y
 at the character's face), so its left (.L) is +X. In the written BVH (Y up) it faces +Z.
@@ -861,11 +862,12 @@ FLUNG_LEFT = dict.fromkeys(PARAMS, 0.0) | {"spine_roll": -10.0, "pelvis_roll": 3
                                              "arm_abd_R": -15.0, "arm_flex_L": 10.0}
 
 
-def step_clip(push: Push) -> Motion:
+def step_clip(push: Push, plan: StepPlan | None = None) -> Motion:
     """A stepping reaction: pendulum root path, legs by IK to the planned feet, upper body blended
-    between key poses by the pendulum's alarm. Starts in the standing pose at the push, ends at rest."""
+    between key poses by the pendulum's alarm. Starts in the standing pose at the push, ends at rest.
+    plan: the balance model's plan (default balance_plan(push); the sways pass a planted-feet one)."""
     skeleton = sample_skeleton()
-    plan = balance_plan(push)
+    plan = balance_plan(push) if plan is None else plan
     count = len(plan.com)
     angle = np.radians(push.direction)
     ahead, side = np.cos(angle), np.sin(angle)
@@ -1044,6 +1046,9 @@ def keyed_clip(keys: list[Key]) -> Motion:
     return _motion(skeleton, root, local)
 
 
+LOCOMOTION = ("walk", "run", "idle")  # not reactions: kept out of the library
+
+
 def _step_maker(name: str) -> Callable[[], Motion]:
     def make() -> Motion:
         return step_clip(STEPS[name])
@@ -1060,14 +1065,22 @@ def _getup_maker(name: str) -> Callable[[], Motion]:
     return make
 
 
+# The physics-made reactions (falls by the ragdoll, sways by the pendulum) live in sample_falls.py
+# next to this file; it imports this module by name, so register it under that name when run as a script.
+sys.modules.setdefault("make_sample_clips", sys.modules[__name__])
+if str(Path(__file__).resolve().parent) not in sys.path:
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+import sample_falls  # noqa: E402
+
 CLIPS: dict[str, Callable[[], Motion]] = {
     "walk": walk_clip,
     "run": run_clip,
     "idle": idle_clip,
     **{name: _step_maker(name) for name in STEPS},
+    **sample_falls.CLIPS,
     **{name: _getup_maker(name) for name in GETUPS},
 }
-LOCOMOTION = ("walk", "run", "idle")  # not reactions: kept out of the library
+REACTIONS = [name for name in CLIPS if name not in LOCOMOTION and name not in GETUPS]
 
 
 def reaction_class(name: str) -> str:
@@ -1082,14 +1095,13 @@ def library_toml() -> str:
         "# One [[clip]] per reaction clip: file, class (a DESIGN.md slug), optional frames = [start, end]",
         "# and optional next = the clip that follows it (a get-up after a fall).",
         "# [[chain]] tables list clips reached only through `next` (the get-ups); they are no class.",
-        "#",
-        "# STILL MISSING: sway_balance, fall_forward_roll, fall_forward_hands, fall_backward_sit,",
-        "# fall_backward_hands and fall_side_knees. They will be made by physics (the ragdoll) and",
-        "# added here, each fall with next = the get-up that fits how it ends.",
         "",
     ]
-    for name in STEPS:
-        lines += ["[[clip]]", f'file = "{name}.bvh"', f'class = "{reaction_class(name)}"', ""]
+    for name in REACTIONS:
+        lines += ["[[clip]]", f'file = "{name}.bvh"', f'class = "{reaction_class(name)}"']
+        if name in sample_falls.NEXT:
+            lines.append(f'next = "{sample_falls.NEXT[name]}"')
+        lines.append("")
     for name in GETUPS:
         lines += ["[[chain]]", f'file = "{name}.bvh"', ""]
     return "\n".join(lines)
@@ -1162,7 +1174,7 @@ def write_contact_sheets(out_dir: Path) -> list[Path]:
     """One PNG per reaction class, one for the get-ups and one for locomotion, into out_dir."""
     out_dir.mkdir(parents=True, exist_ok=True)
     groups: dict[str, list[str]] = {"locomotion": list(LOCOMOTION), "getups": list(GETUPS)}
-    for name in STEPS:
+    for name in REACTIONS:
         groups.setdefault(reaction_class(name), []).append(name)
     written = []
     for group, names in groups.items():
@@ -1173,13 +1185,14 @@ def write_contact_sheets(out_dir: Path) -> list[Path]:
 
 
 def write_clips(out_dir: Path) -> list[Path]:
-    """Write every clip in CLIPS as <name>.bvh (centimetres, Y up, ZXY: the common dialect) and
+    """Write every clip in CLIPS as <name>.bvh (centimetres to 4 decimals, i.e. 1 um, Y up, ZXY: the
+    common dialect; 4 rather than 6 decimals keep the folder a fifth smaller) and
     the reaction library's library.toml."""
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
     for name, make in CLIPS.items():
         path = out_dir / f"{name}.bvh"
-        bvh.write_bvh(path, make(), rotation_order="ZXY", unit="cm", up="Y")
+        bvh.write_bvh(path, make(), rotation_order="ZXY", unit="cm", up="Y", decimals=4)
         written.append(path)
     library = out_dir / "library.toml"
     library.write_text(library_toml(), encoding="utf-8", newline="\n")

@@ -1,0 +1,376 @@
+"""The physics-made sample reactions: falls from the ragdoll, sways from the balance pendulum.
+
+Imported by tools/make_sample_clips.py (which lists these clips in its CLIPS); not run on its own.
+
+FALLS. The ragdoll (reactive_anim.core.ragdoll, anatomical profile, built on the sample skeleton
+with the idle stand as its reference) starts from a frame of the idle stand or of the walk; walk
+starts use frames where both feet's toes are flat (24, 56, 88, ...: the ragdoll has no toe joint,
+so toes bent at the push stay bent through the fall, and from frame 40 a toe tip went 1.7-4 cm
+into the floor); the push lands there (simulate_impact:
+an impulse at a body's centre of mass, then 0.25 s of forward dynamics with weak servos toward the
+motion continuing, a human reaction time); from then on PD servos (simulate.track) drive the
+joints toward a keyframed *target* of protective key poses (arms out to catch, knees bending, a
+tuck) while gravity and the floor contacts decide where the body goes. The root is never
+actuated: nothing holds the character up. A fall ends at rest on the floor, and its `next` is
+the get-up that fits how it lies.
+
+What the simulation output needs before it is written, and why:
+- Knee and elbow are hinges in the sample skeleton (the clip tests allow 1 degree off the hinge),
+  but the anatomical ragdoll gives them a little twist and abduction: those two hinges are locked
+  (range +-0.1 degree) on this tool's ragdoll, and what remains is projected onto the flexion axis.
+- The ragdoll bends the trunk at two joints (waist = spine, back = spine.001 with the chest merged)
+  and the head at one (neck, head merged), where the sample skeleton shares a bend over three and
+  two joints: the simulated bend is spread evenly over them (same total, same end orientation).
+- The ragdoll has no toe joint (the toes are merged into the foot and keep the start frame's
+  bend, none at the committed starts): the toes are written flat. The simulation's floor (simulate.py puts it where the start
+  frame's soles are, a few mm off z = 0) is moved to z = 0.
+- Every other joint angle is written as the simulation gave it.
+
+SWAYS. Pure PD tracking has no balance feedback: the ragdoll held by PD servos toward the standing
+pose topples whatever the push (measured from the idle's first frame, tracking STAND: with no push
+the pelvis is below 0.8 m after 2.5 s, after a 15 N·s push on the chest after 1.3 s). So the
+sways are made as the stepping clips are, by the linear inverted pendulum of
+make_sample_clips.balance_plan with the feet kept planted: the centre of pressure moves within the
+feet (ankle strategy) by a capture-point controller, the trunk bends against the push as the body's
+alarm rises (hip strategy), and the capture point never leaves the support polygon, so no step.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+import make_sample_clips as msc
+from make_sample_clips import FORWARD, FPS, SIDES, X_AXIS, pose
+from reactive_anim.core import quat
+from reactive_anim.core.impact import Impact
+from reactive_anim.core.ragdoll import Ragdoll, build_ragdoll
+from reactive_anim.core.simulate import simulate_impact, track
+from reactive_anim.core.skeleton import Motion
+
+HINGE_LOCK = np.radians(0.1)  # knee and elbow twist and abduction range on this tool's ragdoll
+
+
+@lru_cache(maxsize=1)
+def _start_motions() -> dict[str, Motion]:
+    return {"idle": msc.idle_clip(), "walk": msc.walk_clip()}
+
+
+@lru_cache(maxsize=1)
+def sample_ragdoll() -> Ragdoll:
+    """The ragdoll of the sample skeleton, neutral pose from the idle stand, knees and elbows hinges."""
+    ragdoll = build_ragdoll(msc.sample_skeleton(), reference=_start_motions()["idle"])
+    model = ragdoll.model
+    for side in "lr":
+        for part in ("knee", "elbow"):
+            for hinge in ("twist", "abd"):
+                model.jnt_range[model.joint(f"{part}_{side}_{hinge}").id] = (-HINGE_LOCK, HINGE_LOCK)
+            # The clip tests allow no hyperextension (the anatomical ragdoll allows 5 degrees);
+            # the limit is soft, so it starts a degree into flexion.
+            flex = model.joint(f"{part}_{side}_flex").id
+            model.jnt_range[flex, 0] = max(model.jnt_range[flex, 0], np.radians(1.0))
+    return ragdoll
+
+
+@dataclass(frozen=True)
+class Fall:
+    """One physics fall: where it starts, the push, and the key poses the servos aim at.
+
+    start: "idle" or "walk", from its frame `frame`. direction: degrees from the facing, positive
+    to the character's left. keys: (time s after the servos take over, pose) pairs; the target
+    eases between them (minimum jerk) and holds the last. duration: seconds of tracking.
+    """
+
+    start: str
+    frame: int
+    bone: str
+    direction: float
+    strength: float
+    keys: tuple[tuple[float, dict[str, float]], ...]
+    next: str
+    duration: float = 3.0
+    stiffness: float = 100.0
+    damping_time: float = 0.03
+    lift: float = 0.0  # upward share of the push direction
+
+
+def _target(keys: tuple[tuple[float, dict[str, float]], ...], duration: float) -> Motion:
+    """The keyed target as a Motion: pose parameters eased between the keys (root is irrelevant:
+    the servos follow joint angles only)."""
+    skeleton = msc.sample_skeleton()
+    times = np.array([k[0] for k in keys])
+    values = np.array([msc._vector(k[1]) for k in keys])
+    count = int(round(duration * FPS)) + 4
+    t = np.arange(count) / FPS
+    if len(keys) == 1:
+        rows = np.tile(values[0], (count, 1))
+    else:
+        seg = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(keys) - 2)
+        e = msc._ease((t - times[seg]) / (times[seg + 1] - times[seg]))
+        rows = values[seg] + (values[seg + 1] - values[seg]) * e[:, None]
+    root, local = msc._fk_pose(skeleton, rows)
+    return msc._motion(skeleton, root, local)
+
+
+def _project_hinge(q: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """The rotation about `axis` closest to q (its twist part about the axis)."""
+    along = q[..., 1:] @ axis
+    twist = np.concatenate([q[..., :1], along[..., None] * axis], axis=-1)
+    return quat.normalize(twist)
+
+
+def _spread(local: np.ndarray, joints: list[int]) -> None:
+    """Spread the product of a chain's local rotations evenly over its joints (in place)."""
+    total = local[:, joints[0]]
+    for j in joints[1:]:
+        total = quat.mul(total, local[:, j])
+    part = quat.slerp(quat.identity((len(total),)), quat.make_continuous(total), 1.0 / len(joints))
+    for j in joints:
+        local[:, j] = part
+
+
+def _clean(motion: Motion, floor: float) -> Motion:
+    sk = motion.skeleton
+    local = quat.normalize(motion.local_rot.copy())
+    for side in SIDES:  # the ragdoll has no toes: they stay as they were at the push; flat here
+        local[:, sk.index(f"toe.{side}")] = quat.identity((len(local),))
+    for side in SIDES:
+        local[:, sk.index(f"shin.{side}")] = _project_hinge(local[:, sk.index(f"shin.{side}")], X_AXIS)
+        local[:, sk.index(f"forearm.{side}")] = _project_hinge(local[:, sk.index(f"forearm.{side}")], X_AXIS)
+    _spread(local, [sk.index(n) for n in ("spine", "spine.001", "chest")])
+    _spread(local, [sk.index(n) for n in ("neck", "head")])
+    root = motion.root_pos - np.array([0.0, 0.0, floor])  # the simulated floor is z = 0 in the clip
+    return Motion(skeleton=sk, fps=float(FPS), root_pos=root, local_rot=local)
+
+
+def _direction(angle: float, lift: float = 0.0) -> tuple[float, float, float]:
+    a = np.radians(angle)
+    d = np.cos(a) * FORWARD + np.sin(a) * X_AXIS + lift * msc.UP
+    return tuple(float(v) for v in d)
+
+
+@dataclass
+class FallRun:
+    """A simulated fall: the cleaned motion (clip frame 0 = the push) and the ragdoll's centre of
+    mass per frame (floor at z = 0)."""
+
+    motion: Motion
+    com: np.ndarray
+
+
+def simulate_fall(fall: Fall) -> FallRun:
+    """Push, BC window, then PD tracking of the fall's keyed target; BC and CD joined at C."""
+    ragdoll = sample_ragdoll()
+    source = _start_motions()[fall.start]
+    impact = Impact(frame=fall.frame, bone=fall.bone, direction=_direction(fall.direction, fall.lift),
+                    strength=fall.strength)
+    bc = simulate_impact(ragdoll, source, impact)
+    target = _target(fall.keys, fall.duration)
+    cd = track(ragdoll, bc.state, target, fall.duration, stiffness=fall.stiffness, damping_time=fall.damping_time)
+    root = np.concatenate([bc.motion.root_pos, cd.motion.root_pos[1:]])
+    local = np.concatenate([bc.motion.local_rot, cd.motion.local_rot[1:]])
+    motion = _clean(Motion(skeleton=bc.motion.skeleton, fps=float(FPS), root_pos=root, local_rot=local), bc.state.floor)
+    com = np.concatenate([bc.com, cd.com[1:]]) - np.array([0.0, 0.0, bc.state.floor])
+    return FallRun(motion, com)
+
+
+SETTLED_SPEED = 0.01  # m/s: a body whose joints all move slower than this has settled
+SETTLED_TURN = 0.05  # rad/s, likewise for every joint's rotation
+SETTLED_TAIL = 0.3  # s kept after the body has settled
+
+
+def _trim_settled(motion: Motion) -> Motion:
+    """Cut the still tail: keep SETTLED_TAIL seconds after the last frame at which any joint still
+    moves faster than SETTLED_SPEED (or turns faster than SETTLED_TURN), so the folder stays small.
+    Lying bodies creep by a millimetre or two per second on the simulated floor for a while."""
+    pos = motion.global_positions()
+    speed = np.linalg.norm(np.diff(pos, axis=0), axis=-1).max(axis=1) * motion.fps
+    turn = quat.angle_between(motion.local_rot[1:], motion.local_rot[:-1]).max(axis=1) * motion.fps
+    moving = (speed > SETTLED_SPEED) | (turn > SETTLED_TURN)
+    last = int(np.flatnonzero(moving)[-1]) + 1 if moving.any() else 0
+    end = min(motion.num_frames, last + 1 + int(round(SETTLED_TAIL * FPS)))
+    return Motion(skeleton=motion.skeleton, fps=motion.fps, root_pos=motion.root_pos[:end],
+                  local_rot=motion.local_rot[:end])
+
+
+def fall_clip(fall: Fall) -> Motion:
+    return _trim_settled(simulate_fall(fall).motion)
+
+
+# ---------------------------------------------------------------------------------------------
+# The falls: key poses per class, variants as rows
+
+
+def _catch_forward(start: str, frame: int, direction: float, strength: float) -> Fall:
+    """Arms thrown forward with the wrists bent back to catch, knees giving a little; the elbows
+    yield once the hands are down and the body ends lying face down, head up."""
+    return Fall(start, frame, "chest", direction, strength, (
+        (0.0, pose(arm_flex=50.0, elbow=20.0, knee=10.0, hip_flex=5.0)),
+        (0.25, pose(arm_flex=95.0, arm_abd=15.0, elbow=15.0, wrist=-30.0, hip_flex=20.0, knee=25.0, spine_pitch=10.0,
+                    neck_pitch=-30.0)),
+        (0.9, pose(arm_flex=95.0, arm_abd=25.0, elbow=70.0, wrist=-30.0, hip_flex=5.0, knee=15.0, neck_pitch=-35.0)),
+        (1.6, pose(arm_flex=40.0, arm_abd=45.0, elbow=100.0, wrist=-30.0, hip_flex=0.0, knee=10.0, neck_pitch=-25.0,
+                   ankle=40.0)),
+    ), next="getup_face_down.bvh")
+
+
+def _catch_backward(start: str, frame: int, direction: float, strength: float) -> Fall:
+    """Arms reaching back and down with the wrists bent back, knees and hips bending to lower the
+    body; the hands land first and the body ends sitting, propped on them."""
+    return Fall(start, frame, "chest", direction, strength, (
+        (0.0, pose(arm_flex=-40.0, arm_abd=25.0, elbow=10.0, wrist=-50.0, hip_flex=40.0, knee=60.0, spine_pitch=25.0)),
+        (0.4, pose(arm_flex=-60.0, arm_abd=25.0, elbow=10.0, wrist=-60.0, hip_flex=60.0, knee=80.0, spine_pitch=25.0,
+                   neck_pitch=15.0)),
+        (1.5, pose(arm_flex=-50.0, arm_abd=25.0, elbow=15.0, wrist=-60.0, hip_flex=70.0, knee=70.0, spine_pitch=15.0)),
+    ), next="getup_sitting.bvh")
+
+
+def _roll(start: str, frame: int, direction: float, strength: float) -> Fall:
+    """A hard shove low on the back: chin to chest, arms forward, hips and knees pulled into a tuck
+    so the body rolls over its rounded back; after a second the tuck opens and the body lies face up."""
+    tuck = pose(arm_flex=90.0, elbow=60.0, knee=130.0, hip_flex=110.0, spine_pitch=70.0, neck_pitch=60.0)
+    return Fall(start, frame, "spine", direction, strength, (
+        (0.0, pose(arm_flex=80.0, elbow=30.0, knee=30.0, hip_flex=30.0, spine_pitch=30.0, neck_pitch=30.0)),
+        (0.3, tuck),
+        (1.0, tuck),
+        (1.6, pose(arm_flex=5.0, arm_abd=35.0, elbow=20.0, knee=20.0, hip_flex=20.0, spine_pitch=5.0, neck_pitch=10.0,
+                   ankle=30.0)),
+    ), next="getup_face_up.bvh", duration=4.5)
+
+
+def _sit(direction: float, strength: float, hip: float, knee: float, trunk: float, arms: float) -> Fall:
+    """A light push back: a squat over half a second (hips `hip`, knees `knee` degrees) with the
+    trunk (`trunk`) and arms (`arms`) forward, so the pelvis drops onto the floor close behind the heels; then the legs
+    slide out straight into a long sit, arms forward."""
+    return Fall("idle", 0, "chest", direction, strength, (
+        (0.0, pose(hip_flex=20.0, knee=30.0, spine_pitch=15.0, arm_flex=40.0, elbow=20.0)),
+        (0.5, pose(hip_flex=hip, knee=knee, ankle=-20.0, spine_pitch=trunk, neck_pitch=25.0, arm_flex=arms,
+                   elbow=15.0)),
+        (1.1, pose(hip_flex=95.0, knee=20.0, ankle=10.0, spine_pitch=45.0, neck_pitch=20.0, arm_flex=70.0, elbow=20.0)),
+        (1.7, pose(hip_flex=90.0, knee=20.0, ankle=20.0, spine_pitch=35.0, neck_pitch=10.0, arm_flex=40.0, arm_abd=10.0,
+                   elbow=30.0)),
+    ), next="getup_sitting.bvh", duration=3.5)
+
+
+def _side_knees(direction: float, strength: float, knee: float) -> Fall:
+    """A push at the hips from the side: the knees give (knees `knee` degrees over ankles bent up
+    50, hips straight) so they travel forward and down; on the knees the body leans back, is carried
+    over sideways by the push onto the hip and hand, and ends lying face down."""
+    return Fall("idle", 0, "pelvis", direction, strength, (
+        (0.0, pose(hip_flex=0.0, knee=20.0, ankle=-15.0, arm_abd=20.0, elbow=20.0)),
+        (0.4, pose(hip_flex=0.0, knee=knee, ankle=-50.0, spine_pitch=0.0, arm_abd=20.0, arm_flex=30.0,
+                   elbow=70.0)),
+        (0.75, pose(hip_flex=-15.0, knee=100.0, ankle=35.0, spine_pitch=-15.0, arm_abd=30.0, arm_flex=30.0,
+                    elbow=70.0)),
+        (1.5, pose(hip_flex=40.0, knee=130.0, ankle=50.0, spine_pitch=20.0, spine_roll=-20.0, arm_abd=30.0,
+                   elbow=30.0)),
+        (2.3, pose(arm_flex=40.0, arm_abd=45.0, elbow=100.0, wrist=0.0, hip_flex=0.0, knee=10.0, neck_pitch=-25.0,
+                   ankle=40.0)),
+    ), next="getup_face_down.bvh", duration=5.0)
+
+
+FALLS: dict[str, Fall] = {
+    "fall_forward_roll_1": _roll("idle", 0, 0.0, 170.0),
+    "fall_forward_roll_2": _roll("idle", 0, 15.0, 190.0),
+    "fall_forward_roll_3": _roll("walk", 56, 0.0, 120.0),
+    "fall_forward_hands_1": _catch_forward("idle", 0, 0.0, 80.0),
+    "fall_forward_hands_2": _catch_forward("idle", 0, 20.0, 90.0),
+    "fall_forward_hands_3": _catch_forward("walk", 88, 0.0, 100.0),
+    "fall_backward_hands_1": _catch_backward("idle", 0, 180.0, 80.0),
+    "fall_backward_hands_2": _catch_backward("idle", 0, 160.0, 70.0),
+    "fall_backward_hands_3": _catch_backward("idle", 0, -150.0, 90.0),
+    "fall_backward_sit_1": _sit(180.0, 10.0, 100.0, 125.0, 50.0, 90.0),
+    "fall_backward_sit_2": _sit(160.0, 10.0, 80.0, 110.0, 50.0, 90.0),
+    "fall_backward_sit_3": _sit(-160.0, 10.0, 110.0, 135.0, 60.0, 110.0),
+    "fall_side_knees_1": _side_knees(90.0, 45.0, 40.0),
+    "fall_side_knees_2": _side_knees(90.0, 48.0, 40.0),
+    "fall_side_knees_3": _side_knees(80.0, 48.0, 45.0),
+}
+
+
+# ---------------------------------------------------------------------------------------------
+# Sways: the pendulum with both feet planted
+
+
+@dataclass(frozen=True)
+class Sway:
+    direction: float  # degrees from the facing, positive to the character's left
+    speed: float  # centre-of-mass speed the push leaves, m/s
+
+
+SWAYS: dict[str, Sway] = {
+    "sway_balance_1": Sway(0.0, 0.36),
+    "sway_balance_2": Sway(180.0, 0.34),
+    "sway_balance_3": Sway(90.0, 0.42),
+}
+
+
+def sway_plan(sway: Sway) -> msc.StepPlan:
+    """The linear inverted pendulum of balance_plan, feet planted: the centre of pressure follows
+    the capture-point controller p = xi + 1.5 (xi - target), clipped to the soles' extent along
+    the push (ankle strategy). Raises if the capture point leaves the soles (that push needs a step)."""
+    dt = 1.0 / (FPS * msc.SIM_STEPS)
+    angle = np.radians(sway.direction)
+    axis = np.cos(angle) * FORWARD[:2] + np.sin(angle) * X_AXIS[:2]
+    feet = {side: np.array([s * msc.STAND_WIDTH / 2, 0.0]) for side, s in SIDES.items()}
+    lo = min(msc._interval(f + msc.SOLE, axis)[0] for f in feet.values())
+    hi = max(msc._interval(f + msc.SOLE, axis)[1] for f in feet.values())
+    target = float(np.mean([(f + msc.FOOT_CENTRE) @ axis for f in feet.values()]))
+    u, v, t = target, sway.speed, 0.0
+    alarm_state = np.zeros(2)
+    com, alarm, settled_at, frame = [], [], None, 0
+    while settled_at is None or frame < settled_at + int(0.6 * FPS):
+        com.append((u - target) * axis)
+        alarm.append(alarm_state[0])
+        for _ in range(msc.SIM_STEPS):
+            xi = u + v / msc.OMEGA
+            if not lo <= xi <= hi:
+                raise RuntimeError(f"{sway}: the capture point leaves the feet; that push needs a step")
+            p = float(np.clip(xi + 1.5 * (xi - target), lo, hi))
+            v += msc.OMEGA**2 * (u - p) * dt
+            u += v * dt
+            raw = min(abs(v) / 0.8, 1.0)
+            alarm_state += dt * np.array([alarm_state[1], 144.0 * (raw - alarm_state[0]) - 24.0 * alarm_state[1]])
+        frame += 1
+        if settled_at is None and t > 0.3 and abs(v) < 0.002 and abs(xi - target) < 0.002:
+            settled_at = frame
+        t += 1.0 / FPS
+    count = len(com)
+    ankles = {side: np.tile([*f, msc.ANKLE_Z * msc.HEIGHT], (count, 1)) for side, f in feet.items()}
+    pitch = {side: np.zeros(count) for side in SIDES}
+    # The alarm (speed / 0.8 m/s, smoothed) sets how far the trunk bends and the arms rise (the hip
+    # strategy); a sway's speeds are small, so it counts double here to be visible.
+    return msc.StepPlan(np.array(com), ankles, pitch, np.minimum(2.0 * np.array(alarm), 1.0), [])
+
+
+def sway_clip(sway: Sway) -> Motion:
+    """A sway: the stepping clip's body (pendulum root path, trunk and arms by the alarm, legs by IK
+    to the planted feet) on the planted-feet plan."""
+    push = msc.Push(direction=sway.direction, speed=sway.speed, max_step=0.0, first="L")
+    return msc.step_clip(push, plan=sway_plan(sway))
+
+
+def _fall_maker(name: str) -> Callable[[], Motion]:
+    def make() -> Motion:
+        return fall_clip(FALLS[name])
+
+    make.__doc__ = f"The physics fall {name}: {FALLS[name]}"
+    return make
+
+
+def _sway_maker(name: str) -> Callable[[], Motion]:
+    def make() -> Motion:
+        return sway_clip(SWAYS[name])
+
+    make.__doc__ = f"The pendulum sway {name}: {SWAYS[name]}"
+    return make
+
+
+CLIPS: dict[str, Callable[[], Motion]] = {
+    **{name: _sway_maker(name) for name in SWAYS},
+    **{name: _fall_maker(name) for name in FALLS},
+}
+NEXT: dict[str, str] = {name: fall.next for name, fall in FALLS.items()}
