@@ -101,6 +101,13 @@ def _action_assigned(armature: bpy.types.Object, action: bpy.types.Action | None
     """Temporarily play `action` on the armature (NLA off), restoring everything afterwards."""
     scene = bpy.context.scene
     frame = scene.frame_current, scene.frame_subframe
+    created = armature.animation_data is None
+    if created and action is None:  # nothing plays: read the pose as it is, add nothing
+        try:
+            yield None
+        finally:
+            scene.frame_set(frame[0], subframe=frame[1])
+        return
     adt = armature.animation_data or armature.animation_data_create()
     saved = (adt.action, getattr(adt, "action_slot", None), adt.use_nla)
     try:
@@ -110,10 +117,13 @@ def _action_assigned(armature: bpy.types.Object, action: bpy.types.Action | None
         adt.use_nla = False
         yield adt.action
     finally:
-        adt.action = saved[0]
-        if saved[0] is not None and hasattr(adt, "action_slot") and saved[1] is not None:
-            adt.action_slot = saved[1]
-        adt.use_nla = saved[2]
+        if created:
+            armature.animation_data_clear()
+        else:
+            adt.action = saved[0]
+            if saved[0] is not None and hasattr(adt, "action_slot") and saved[1] is not None:
+                adt.action_slot = saved[1]
+            adt.use_nla = saved[2]
         scene.frame_set(frame[0], subframe=frame[1])
 
 

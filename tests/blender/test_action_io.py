@@ -107,7 +107,9 @@ def test_round_trip_on_a_rig_that_is_not_a_bvh_import():
     root_pos = skeleton.offsets[0] + 0.1 * rng.normal(size=(frames, 3))
     motion = Motion(skeleton, 24.0, root_pos, motion_rot, local_pos)
     action = action_io.write_motion(rig, motion, "random")
+    assert rig.animation_data is None  # writing does not assign
     back = action_io.read_motion(rig, action)
+    assert rig.animation_data is None  # reading another action leaves no trace on the rig
     assert np.abs(back.global_positions() - motion.global_positions()).max() < 1e-5
     assert quat.angle_between(back.local_rot, motion.local_rot).max() < 1e-5
 
