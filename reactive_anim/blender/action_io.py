@@ -208,7 +208,7 @@ def write_motion(armature: bpy.types.Object, motion: Motion, name: str, frame_st
     """Write `motion` into a NEW action called `name` (keys at frame_start, frame_start + 1, ...).
 
     The armature's current action is not touched and the new one is not assigned (the caller
-    decides; see `assign_action`). Bones are switched to quaternion rotation mode, since the new
+    decides). Bones are switched to quaternion rotation mode, since the new
     action keys quaternions. Every motion joint must be a bone with the same parent.
     """
     bones = _bones_in_order(armature)
@@ -285,10 +285,3 @@ def _fcurve_factory(action: bpy.types.Action, armature: bpy.types.Object) -> Cal
         return fcurve
 
     return new_fcurve
-
-
-def assign_action(armature: bpy.types.Object, action: bpy.types.Action) -> None:
-    """Play `action` on the armature (and its slot, on layered-action Blenders)."""
-    adt = armature.animation_data or armature.animation_data_create()
-    adt.action = action
-    _ensure_slot(adt, action)

@@ -171,7 +171,6 @@ class Ragdoll:
     profile: str
     total_mass: float
     bodies: list[RagdollBody]
-    neutral_local_rot: np.ndarray
     neutral_global_rot: np.ndarray
     neutral_pos: np.ndarray
     body_of_joint: np.ndarray
@@ -222,15 +221,6 @@ def _rotation_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
         perp = np.cross(u, [1.0, 0.0, 0.0]) if abs(u[0]) < 0.9 else np.cross(u, [0.0, 1.0, 0.0])
         return quat.from_axis_angle(_unit(perp), np.pi)
     return quat.from_axis_angle(axis / s, np.arctan2(s, c))
-
-
-def _descendants(skeleton: Skeleton, joint: int) -> list[int]:
-    """The joint and everything below it."""
-    out = [joint]
-    for j in range(joint + 1, skeleton.num_joints):
-        if skeleton.parents[j] in out:
-            out.append(j)
-    return out
 
 
 def _tips(skeleton: Skeleton, joints: list[int], pos: np.ndarray, grot: np.ndarray) -> np.ndarray:
@@ -652,7 +642,6 @@ def build_ragdoll(
         profile=profile,
         total_mass=float(total_mass),
         bodies=bodies,
-        neutral_local_rot=neutral_local,
         neutral_global_rot=ngrot,
         neutral_pos=npos,
         body_of_joint=body_of_joint,
