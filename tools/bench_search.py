@@ -126,6 +126,21 @@ def bound_scan_ms(lib: Library, query: search.Query) -> float:
     return (time.perf_counter() - t) * 1000
 
 
+def pivot_pruned(lib: Library, queries: list[search.Query]) -> float:
+    """Mean fraction of all windows whose pivot (triangle-inequality) bound alone exceeds the best
+    cost, i.e. what the pivots prune once the best is known."""
+    index = lib.search_index()
+    wp = search.joint_weights(search.TABLE2_POSITION_WEIGHTS)
+    wq = search.joint_weights(search.TABLE2_ROTATION_WEIGHTS)
+    cands = np.arange(len(index.starts))
+    fractions = []
+    for q in queries:
+        _, cost, _ = search.find_best(lib, q)
+        dq = search.window_costs(lib, index.pivots, q, wp, wq).astype(np.float32)
+        fractions.append(1.0 - len(search._pivot_candidate_filter(index, cands, dq, cost)) / len(cands))
+    return float(np.mean(fractions))
+
+
 def reference_ms(lib: Library, query: search.Query, candidates: int = 2000) -> float:
     """Reference time for the whole library, from `candidates` windows timed one at a time."""
     starts = lib.search_index().starts
@@ -164,6 +179,8 @@ def bench_search(report) -> None:
             full_ms, full_eval = time_queries(lib, queries)
             report(GROUP, f"full search ({kind} queries)", full_ms, "ms/query", windows_evaluated=full_eval, **ctx)
             report(GROUP, f"full search frames/ms ({kind})", lib.num_frames / full_ms, "frames/ms", **ctx)
+            report(GROUP, f"windows pruned by the pivot bound alone ({kind})", 100 * pivot_pruned(lib, queries), "%",
+                   pivots=len(index.pivots), **ctx)  # fmt: skip
             narrow_queries = make_queries(lib, 20, *noise, seed=2, slug=narrow)
             n_ms, n_eval = time_queries(lib, narrow_queries, [narrow])
             report(GROUP, f"narrowed search ({kind} queries)", n_ms, "ms/query", windows_evaluated=n_eval,

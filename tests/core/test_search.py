@@ -103,6 +103,54 @@ def test_fast_equals_reference_on_random_queries(synthetic, noise) -> None:
     assert_same(synthetic, random_query(synthetic, rng, *noise), ["sway_balance", "step_back"])
 
 
+def assert_pivot_bounds_hold(library, queries) -> None:
+    """The triangle bounds (search._pivot_node_bounds, _pivot_candidate_filter) never exceed Eq. 1,
+    and the stored float32 pivot distances are within the index's margin of the exact cost."""
+    from reactive_anim.core import search as S
+
+    index = library.search_index()
+    wp, wq = joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS)
+    assert len(index.pivots) > 0
+    for j, pivot in enumerate(index.pivots):
+        exact = S.window_costs(library, index.starts, Query(library.features(pivot, pivot + library.window)), wp, wq)
+        assert np.max(np.abs(exact - index.pivot_dist[:, j])) < index.pivot_margin / 10
+    cands = np.arange(len(index.starts))
+    block = np.searchsorted(index.firsts[0], cands, side="right") - 1
+    for query in queries:
+        exact = S.window_costs(library, index.starts, query, wp, wq)
+        dq = S.window_costs(library, index.pivots, query, wp, wq).astype(np.float32)
+        node = S._pivot_node_bounds(index, 0, np.arange(len(index.firsts[0]) - 1), dq)
+        assert np.all(node[block] <= exact)
+        # Per candidate: every candidate the filter drops at threshold `cost` costs more than that.
+        for cost in np.quantile(exact, [0.0, 0.01, 0.2, 0.5]):
+            kept = S._pivot_candidate_filter(index, cands, dq, float(cost))
+            assert np.all(exact[np.setdiff1d(cands, kept)] > cost)
+
+
+def test_pivot_bounds_are_lower_bounds(synthetic, tmp_path: Path) -> None:
+    rng = np.random.default_rng(5)
+    queries = [random_query(synthetic, rng, *noise) for noise in ((0.0, 0.0), (0.01, 0.02), (0.3, 0.5))]
+    motion = bvh.read_bvh(make_clip(tmp_path / "other.bvh", 777, 150, 50.0))
+    queries.append(query_from_motion(motion, 10.0, synthetic.window, synthetic.fps))
+    assert_pivot_bounds_hold(synthetic, queries)
+
+
+def test_other_weights_skip_the_pivots_and_stay_exact(synthetic) -> None:
+    """The pivot distances hold for Table 2's weights only; other weights must still find the best."""
+    from reactive_anim.core import search as S
+
+    pw = {**TABLE2_POSITION_WEIGHTS, "wrist": 1.5, "hip": 0.1}
+    rw = {**TABLE2_ROTATION_WEIGHTS, "knee": 0.0, "neck": 2.0}
+    index = synthetic.search_index()
+    rng = np.random.default_rng(11)
+    for _ in range(3):
+        query = random_query(synthetic, rng, 0.05, 0.1)
+        start, cost, _ = find_best(synthetic, query, position_weights=pw, rotation_weights=rw)
+        costs = S.window_costs(synthetic, index.starts, query, joint_weights(pw), joint_weights(rw))
+        assert start == index.starts[np.argmin(costs)]
+        assert cost == pytest.approx(reference_cost(synthetic, start, query, pw, rw), rel=1e-5)
+
+
 def test_fast_equals_reference_on_unrelated_queries(synthetic, tmp_path: Path) -> None:
     """Queries from clips that are not in the library, at other frame rates."""
     rng = np.random.default_rng(7)
@@ -273,6 +321,7 @@ def test_fast_equals_reference_on_real_mocap(tmp_path: Path) -> None:
         assert_same(lib, query_from_motion(motion, start, lib.window, lib.fps))
     for _ in range(2):
         assert_same(lib, random_query(lib, rng, 0.02, 0.02))
+    assert_pivot_bounds_hold(lib, [random_query(lib, rng, 0.02, 0.02), random_query(lib, rng, 0.1, 0.2)])
 
 
 def test_retrieval_on_real_mocap(real_library) -> None:
