@@ -464,9 +464,14 @@ def _choose_pivots(library, starts: np.ndarray, count: int, wp, wq) -> np.ndarra
 
 
 def build_index(library, block_size: int = BLOCK_SIZE, fanout: int = LEVEL_FANOUT, levels: int = LEVELS,
-                pivots: int = PIVOTS) -> SearchIndex:
+                pivots: int = PIVOTS, cached_pivots: tuple[np.ndarray, np.ndarray] | None = None) -> SearchIndex:
     """Valid window starts, grouped into a hierarchy of blocks per class, with their boxes and the
-    pivot distances (for Table 2's weights)."""
+    pivot distances (for Table 2's weights).
+
+    cached_pivots: (pivot start frames, pivot distances) of an earlier build of the same library
+    (SearchIndex.pivots, .pivot_dist); the pivot distances are most of the build time, so a library
+    loaded from its cache reuses them. Ignored when they do not fit this library's windows.
+    """
     window = library.window
     starts_by_class, class_starts, count = [], {}, 0
     for slug, (a, b) in library.class_ranges.items():
@@ -480,9 +485,10 @@ def build_index(library, block_size: int = BLOCK_SIZE, fanout: int = LEVEL_FANOU
     starts = np.concatenate(starts_by_class) if starts_by_class else np.zeros(0, np.int64)
     block_first, class_nodes = _group(class_starts, block_size)
     wp, wq = joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS)
-    pivot_idx = _choose_pivots(library, starts, pivots, wp, wq)
+    reuse = _fitting_pivots(starts, cached_pivots)
+    pivot_idx = reuse[0] if reuse else _choose_pivots(library, starts, pivots, wp, wq)
     ppos, prot = _canonical_windows(library, starts[pivot_idx])
-    pivot_dist = np.empty((len(starts), len(pivot_idx)), np.float32)
+    pivot_dist = reuse[1] if reuse else np.empty((len(starts), len(pivot_idx)), np.float32)
     # Boxes per block, from candidate windows built a chunk at a time (bounded memory).
     nb = len(block_first) - 1
     plo, phi = np.empty((nb, 3, window, NUM_JOINTS), np.float32), np.empty((nb, 3, window, NUM_JOINTS), np.float32)
@@ -492,7 +498,8 @@ def build_index(library, block_size: int = BLOCK_SIZE, fanout: int = LEVEL_FANOU
         b1 = min(nb, b0 + chunk)
         s0, s1 = block_first[b0], block_first[b1]
         pos, rot = _canonical_windows(library, starts[s0:s1])
-        pivot_dist[s0:s1] = _pivot_distances(pos, rot, ppos, prot, wp, wq)
+        if not reuse:
+            pivot_dist[s0:s1] = _pivot_distances(pos, rot, ppos, prot, wp, wq)
         cut = block_first[b0:b1] - s0
         plo[b0:b1] = np.minimum.reduceat(pos, cut, axis=0)
         phi[b0:b1] = np.maximum.reduceat(pos, cut, axis=0)
@@ -513,6 +520,21 @@ def build_index(library, block_size: int = BLOCK_SIZE, fanout: int = LEVEL_FANOU
         (ppos.reshape(len(ppos), 3, -1).transpose(1, 0, 2).copy(),
          prot.reshape(len(prot), 4, -1).transpose(1, 0, 2).astype(float)),
     )  # fmt: skip
+
+
+def _fitting_pivots(
+    starts: np.ndarray, cached: tuple[np.ndarray, np.ndarray] | None
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """(indices into starts, distances) of cached pivots, or None when they do not fit `starts`."""
+    if cached is None:
+        return None
+    pivot_starts, dist = cached
+    idx = np.searchsorted(starts, pivot_starts)
+    fits = (
+        dist.shape == (len(starts), len(pivot_starts)) and dist.dtype == np.float32
+        and np.all(idx < len(starts)) and np.array_equal(starts[np.minimum(idx, len(starts) - 1)], pivot_starts)
+    )  # fmt: skip
+    return (idx, dist) if fits else None
 
 
 def _pivot_node_ranges(pivot_dist: np.ndarray, firsts: list[np.ndarray], window: int, wp, wq):

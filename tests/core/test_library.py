@@ -293,3 +293,23 @@ def test_the_sample_library_loads(tmp_path: Path) -> None:
         assert sum(c.reaction_class == slug for c in lib.clips) >= 3, slug
     assert all(c.next is None or c.next in chains for c in lib.clips)
     assert all(c.next is not None for c in lib.clips if c.reaction_class.startswith("fall_"))
+
+
+def test_a_reloaded_library_reuses_its_pivot_distances(small_library: Path, tmp_path: Path, monkeypatch) -> None:
+    """The pivot distances, most of the index build, are cached beside the library and reused."""
+    from reactive_anim.core import search
+
+    first = load_library(small_library, cache_dir=tmp_path / "cache")
+    built = first.search_index()
+    assert first.cache_path.with_suffix(".pivots.npz").is_file()
+
+    def no_recompute(*args, **kwargs):
+        raise AssertionError("pivot distances recomputed although cached")
+
+    monkeypatch.setattr(search, "_pivot_distances", no_recompute)
+    again = load_library(small_library, cache_dir=tmp_path / "cache")
+    reused = again.search_index()
+    assert np.array_equal(reused.pivots, built.pivots)
+    assert np.array_equal(reused.pivot_dist, built.pivot_dist)
+    query = search.Query(again.features(5, 5 + again.window))
+    assert search.find_best(again, query)[:2] == search.find_best(first, query)[:2]
