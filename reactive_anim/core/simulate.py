@@ -40,11 +40,13 @@ joints above the pelvis keep their mocap local rotation from the start frame; la
 the result back into mocap and bake it onto the character.
 
 A Ragdoll's MuJoCo model is adjusted per run (body offsets to the start frame's merged bones and
-actuator gains), so run one simulation at a time per Ragdoll.
+actuator gains) and its MjData buffers are reused across runs (see _RagdollCache), so run one
+simulation at a time per Ragdoll.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import mujoco
@@ -112,6 +114,76 @@ class SimResult:
 
 
 # ---------------------------------------------------------------------------------------------
+# Per-ragdoll constants
+
+
+@dataclass
+class _RagdollCache:
+    """What every run needs but depends only on the ragdoll: index arrays, masses, sole geoms and two
+    reusable MjData. Allocating an MjData costs ~0.5 ms, more than a tenth of a BC window; a reused
+    one is put back by mj_resetData, which is what the MjData constructor itself calls, so the
+    results are the same bit for bit."""
+
+    model: mujoco.MjModel
+    sim_data: mujoco.MjData  # the stepped state of _run
+    kin_data: mujoco.MjData  # kinematics only: ground level, samples
+    body_ids: np.ndarray  # MuJoCo body id per ragdoll body
+    body_joints: np.ndarray  # skeleton joint per ragdoll body
+    body_parents: np.ndarray  # parent body per ragdoll body, the root's own index (0) for the root
+    child_joints: np.ndarray  # bodies[1:]: their joints
+    child_parents: np.ndarray  # bodies[1:]: index of the parent body
+    child_parent_joints: np.ndarray  # bodies[1:]: the parent body's joint
+    mass_per_actuator: np.ndarray  # mass_moved of each actuator's body
+    act_adr: np.ndarray  # qpos address of each actuator's joint
+    limit_adr: np.ndarray  # hinge qpos addresses with their limits in radians
+    limit_lo: np.ndarray
+    limit_hi: np.ndarray
+    soles: np.ndarray  # geom ids of the two sole capsules
+    total_mass: float
+    warnings: np.ndarray  # mjtWarning index per name in _WARNINGS
+    dof_body: dict[int, str]
+
+
+def _cache(ragdoll: Ragdoll) -> _RagdollCache:
+    """The ragdoll's constants, built on first use and kept on the Ragdoll (rebuilt if its model changes)."""
+    cache = getattr(ragdoll, "_sim_cache", None)
+    if cache is not None and cache.model is ragdoll.model:
+        return cache
+    model = ragdoll.model
+    children = ragdoll.bodies[1:]
+    limit_adr = [body.qpos_adr for body in children]
+    limits = [np.radians(body.ranges) for body in children]
+    cache = _RagdollCache(
+        model=model,
+        sim_data=mujoco.MjData(model),
+        kin_data=mujoco.MjData(model),
+        body_ids=np.array([b.body_id for b in ragdoll.bodies], dtype=int),
+        body_joints=np.array([b.joint for b in ragdoll.bodies], dtype=int),
+        body_parents=np.array([max(b.parent, 0) for b in ragdoll.bodies], dtype=int),
+        child_joints=np.array([b.joint for b in children], dtype=int),
+        child_parents=np.array([b.parent for b in children], dtype=int),
+        child_parent_joints=np.array([ragdoll.bodies[b.parent].joint for b in children], dtype=int),
+        mass_per_actuator=np.concatenate([np.full(len(b.hinges), mass_moved(ragdoll, b)) for b in children]),
+        act_adr=_actuated_qpos(ragdoll),
+        limit_adr=np.concatenate(limit_adr).astype(int) if limit_adr else np.zeros(0, dtype=int),
+        limit_lo=np.concatenate([r[:, 0] for r in limits]) if limits else np.zeros(0),
+        limit_hi=np.concatenate([r[:, 1] for r in limits]) if limits else np.zeros(0),
+        soles=np.array([int(model.geom(name).id) for name in ("ankle_l", "ankle_r")], dtype=int),
+        total_mass=float(np.sum(model.body_mass)),
+        warnings=np.array([int(getattr(mujoco.mjtWarning, name)) for name in _WARNINGS], dtype=int),
+        dof_body={int(adr): body.name for body in ragdoll.bodies for adr in body.dof_adr},
+    )
+    ragdoll._sim_cache = cache
+    return cache
+
+
+def _fresh(data: mujoco.MjData) -> mujoco.MjData:
+    """A cached MjData put back into the state of a newly made one."""
+    mujoco.mj_resetData(data.model, data)
+    return data
+
+
+# ---------------------------------------------------------------------------------------------
 # Mocap <-> joint angles
 
 
@@ -157,6 +229,26 @@ def _kinematics(
     return pos, rot
 
 
+@dataclass
+class _MocapPoses:
+    """mocap_qpos of some frames together with the forward kinematics it was computed from, so a
+    held pose of one of those frames needs no second FK pass (row k of the batched FK is bitwise the
+    FK of that frame alone)."""
+
+    qpos: np.ndarray  # (N, nq)
+    local_rot: np.ndarray  # (N, J, 4) normalised
+    offsets: np.ndarray  # (N, J, 3)
+    root_pos: np.ndarray  # (N, 3)
+    global_pos: np.ndarray  # (N, J, 3), kinematic joints only
+    global_rot: np.ndarray  # (N, J, 4), kinematic joints only
+
+    def held(self, k: int) -> HeldPose:
+        """Row k as a HeldPose, with arrays of its own (as _held_pose makes them)."""
+        return HeldPose(local_rot=self.local_rot[k].copy(), offsets=np.array(self.offsets[k], dtype=float),
+                        root_pos=self.root_pos[k].copy(), global_pos=self.global_pos[k].copy(),
+                        global_rot=self.global_rot[k].copy())
+
+
 def mocap_qpos(ragdoll: Ragdoll, motion: Motion, frames: np.ndarray) -> np.ndarray:
     """Ragdoll joint positions (N, nq) of the given frames of a motion of the ragdoll's skeleton.
 
@@ -164,14 +256,21 @@ def mocap_qpos(ragdoll: Ragdoll, motion: Motion, frames: np.ndarray) -> np.ndarr
     triple: the body's rotation relative to its parent body, split into flexion, twist and
     abduction angles (ragdoll.py, JOINT LIMITS). Angles are unwrapped along the frames.
     """
+    return _mocap_poses(ragdoll, motion, frames).qpos
+
+
+def _mocap_poses(ragdoll: Ragdoll, motion: Motion, frames: np.ndarray) -> _MocapPoses:
+    """mocap_qpos, keeping the FK on the way (see _MocapPoses)."""
     if motion.skeleton.names != ragdoll.skeleton.names:
         raise SkeletonError("the motion's skeleton is not the ragdoll's skeleton (joint names differ)")
     frames = np.asarray(frames, dtype=int)
     _check_finite(motion, frames)
     offsets = np.broadcast_to(motion.joint_offsets()[frames], (len(frames),) + motion.skeleton.offsets.shape)
-    pos, grot = _kinematics(ragdoll, motion.root_pos[frames], quat.normalize(motion.local_rot[frames]), offsets)
-    joints = [b.joint for b in ragdoll.bodies]
-    parents = np.array([max(b.parent, 0) for b in ragdoll.bodies])
+    root_pos = motion.root_pos[frames]
+    local_rot = quat.normalize(motion.local_rot[frames])
+    pos, grot = _kinematics(ragdoll, root_pos, local_rot, offsets)
+    cache = _cache(ragdoll)
+    joints, parents = cache.body_joints, cache.body_parents
     # Body rotation in MuJoCo = global rotation relative to the neutral pose.
     x = quat.make_continuous(quat.mul(grot[:, joints], quat.conj(ragdoll.neutral_global_rot[joints])))
     qpos = np.zeros((len(frames), ragdoll.model.nq))
@@ -183,7 +282,8 @@ def mocap_qpos(ragdoll: Ragdoll, motion: Motion, frames: np.ndarray) -> np.ndarr
     angles = quat.to_euler(quat.mul(quat.conj(fq), quat.mul(rel, fq)), "XYZ")  # (N, B, 3)
     hinge = angles[:, ragdoll.hinge_body, ragdoll.hinge_slot] * ragdoll.hinge_sign
     qpos[:, ragdoll.hinge_qpos] = np.unwrap(hinge, axis=0)
-    return qpos
+    return _MocapPoses(qpos=qpos, local_rot=local_rot, offsets=offsets, root_pos=root_pos, global_pos=pos,
+                       global_rot=grot)
 
 
 def _held_pose(ragdoll: Ragdoll, motion: Motion, frame: int) -> HeldPose:
@@ -210,15 +310,24 @@ class _MocapTable:
 
     first: int
     qpos: np.ndarray
+    poses: _MocapPoses | None = None
 
     def at(self, frame: float) -> np.ndarray:
         return _interp_qpos(self.qpos, frame - self.first)
+
+    def held(self, ragdoll: Ragdoll, motion: Motion, frame: int) -> HeldPose:
+        """_held_pose(ragdoll, motion, frame), from the table's FK when the frame is in it."""
+        k = frame - self.first
+        if self.poses is not None and 0 <= k < len(self.qpos):
+            return self.poses.held(k)
+        return _held_pose(ragdoll, motion, frame)
 
 
 def _mocap_table(ragdoll: Ragdoll, motion: Motion, lo: float, hi: float) -> _MocapTable:
     first = int(max(0, np.floor(lo)))
     last = int(min(motion.num_frames - 1, np.ceil(hi)))
-    return _MocapTable(first, mocap_qpos(ragdoll, motion, np.arange(first, last + 1)))
+    poses = _mocap_poses(ragdoll, motion, np.arange(first, last + 1))
+    return _MocapTable(first, poses.qpos, poses)
 
 
 def state_from_mocap(ragdoll: Ragdoll, motion: Motion, frame: float, _table: _MocapTable | None = None) -> SimState:
@@ -242,7 +351,7 @@ def state_from_mocap(ragdoll: Ragdoll, motion: Motion, frame: float, _table: _Mo
         angle = 2.0 * np.arctan2(np.linalg.norm(d[1:]), d[0])
         qvel[3:6] = d[1:] / max(np.linalg.norm(d[1:]), 1e-12) * angle / span
         qvel[ragdoll.hinge_dof] = (after[ragdoll.hinge_qpos] - before[ragdoll.hinge_qpos]) / span
-    held = _held_pose(ragdoll, motion, int(round(frame)))
+    held = table.held(ragdoll, motion, int(round(frame)))
     return SimState(qpos=qpos, qvel=qvel, held=held, floor=_ground_level(ragdoll, table, frame, held, reach))
 
 
@@ -255,27 +364,31 @@ def ground_level(ragdoll: Ragdoll, motion: Motion, frame: float, span: float = G
     """
     reach = span * motion.fps
     table = _mocap_table(ragdoll, motion, frame - reach, frame + reach)
-    return _ground_level(ragdoll, table, frame, _held_pose(ragdoll, motion, int(round(frame))), reach)
+    return _ground_level(ragdoll, table, frame, table.held(ragdoll, motion, int(round(frame))), reach)
 
 
 def _ground_level(ragdoll: Ragdoll, table: _MocapTable, frame: float, held: HeldPose, reach: float) -> float:
     _place_bodies(ragdoll, held)
     model = ragdoll.model
-    data = mujoco.MjData(model)
-    soles = [int(model.geom(name).id) for name in ("ankle_l", "ankle_r")]
-    rows = [i for i in range(len(table.qpos)) if abs(table.first + i - frame) <= reach]
-    lowest = np.empty(len(rows))
+    cache = _cache(ragdoll)
+    data = _fresh(cache.kin_data)
+    soles = cache.soles
+    numbers = table.first + np.arange(len(table.qpos))
+    rows = np.flatnonzero(np.abs(numbers - frame) <= reach)
+    # Per frame only the kinematics; the sole heights of all frames at once afterwards.
+    sole_z = np.empty((len(rows), len(soles)))
+    sole_axis_z = np.empty((len(rows), len(soles)))
     for n, i in enumerate(rows):
         data.qpos[:] = table.qpos[i]
         mujoco.mj_kinematics(model, data)
-        heights = []
-        for g in soles:
-            axis = data.geom_xmat[g].reshape(3, 3)[:, 2] * model.geom_size[g, 1]
-            heights.append(data.geom_xpos[g, 2] - abs(axis[2]) - model.geom_size[g, 0])
-        lowest[n] = min(heights)
+        sole_z[n] = data.geom_xpos[soles, 2]
+        sole_axis_z[n] = data.geom_xmat[soles, 8]  # the capsule axis' z: row-major (3, 3), [2, 2]
+    size = model.geom_size[soles]
+    heights = sole_z - np.abs(sole_axis_z * size[:, 1]) - size[:, 0]
+    lowest = heights.min(axis=1)
     # The median frame's lowest sole: the standing foot, robust to heel-strike dips and flight
     # phases; but never above the start frame's lowest sole, so the start does not pop out of the floor.
-    at_start = lowest[int(np.argmin([abs(table.first + i - round(frame)) for i in rows]))]
+    at_start = lowest[int(np.argmin(np.abs(numbers[rows] - round(frame))))]
     return float(min(np.median(lowest), at_start))
 
 
@@ -286,11 +399,9 @@ def _ground_level(ragdoll: Ragdoll, table: _MocapTable, frame: float, held: Held
 def _place_bodies(ragdoll: Ragdoll, held: HeldPose) -> None:
     """Body offsets from the held frame: merged bones between two bodies (clavicles, helper bones)
     and animated bone lengths keep the start frame's values, so FK of the output matches MuJoCo."""
-    bodies = ragdoll.bodies[1:]
-    joints = np.array([b.joint for b in bodies])
-    parent_joints = np.array([ragdoll.bodies[b.parent].joint for b in bodies])
+    cache = _cache(ragdoll)
+    joints, parent_joints, ids = cache.child_joints, cache.child_parent_joints, cache.body_ids[1:]
     to_neutral = quat.mul(ragdoll.neutral_global_rot[parent_joints], quat.conj(held.global_rot[parent_joints]))
-    ids = [b.body_id for b in bodies]
     ragdoll.model.body_pos[ids] = quat.rotate(to_neutral, held.global_pos[joints] - held.global_pos[parent_joints])
 
 
@@ -306,7 +417,7 @@ def mass_moved(ragdoll: Ragdoll, body) -> float:
 def _set_servos(ragdoll: Ragdoll, stiffness: float, damping_time: float) -> np.ndarray:
     """Position-actuator gains kp = stiffness * mass moved, kv = damping_time * kp; returns kv/kp per actuator."""
     model = ragdoll.model
-    kp = np.concatenate([np.full(len(b.hinges), stiffness * mass_moved(ragdoll, b)) for b in ragdoll.bodies[1:]])
+    kp = stiffness * _cache(ragdoll).mass_per_actuator
     kv = kp * damping_time
     model.actuator_gainprm[:, 0] = kp
     model.actuator_biasprm[:, 0] = 0.0
@@ -322,9 +433,9 @@ def _actuated_qpos(ragdoll: Ragdoll) -> np.ndarray:
 
 def _clamp_to_limits(ragdoll: Ragdoll, qpos: np.ndarray) -> np.ndarray:
     """Mocap beyond a profile's limits starts at the limit, so the first step does not snap it back."""
+    cache = _cache(ragdoll)
     qpos = qpos.copy()
-    for body in ragdoll.bodies[1:]:
-        qpos[body.qpos_adr] = np.clip(qpos[body.qpos_adr], *np.radians(body.ranges).T)
+    qpos[cache.limit_adr] = np.clip(qpos[cache.limit_adr], cache.limit_lo, cache.limit_hi)
     return qpos
 
 
@@ -354,11 +465,11 @@ class _Watch:
         self.t0 = t0
         self.energy_limit = None
         self.floor = float(data.mocap_pos[0, 2])
-        self.body_ids = [b.body_id for b in ragdoll.bodies]
-        self.dof_body = {}
-        for body in ragdoll.bodies:
-            for adr in body.dof_adr:
-                self.dof_body[int(adr)] = body.name
+        cache = _cache(ragdoll)
+        self.body_ids = cache.body_ids
+        self.dof_body = cache.dof_body
+        self.warnings = cache.warnings
+        self.mass = cache.total_mass
 
     def energy(self) -> float:
         """Kinetic + potential energy, computed on demand (cheaper than MuJoCo's per-step flag)."""
@@ -367,33 +478,28 @@ class _Watch:
         return float(np.sum(self.data.energy))
 
     def arm_energy(self) -> None:
-        mass = float(np.sum(self.model.body_mass))
-        self.energy_limit = self.energy() + 0.5 * mass * ENERGY_ALLOWANCE_SPEED**2
+        self.energy_limit = self.energy() + 0.5 * self.mass * ENERGY_ALLOWANCE_SPEED**2
 
     def check(self) -> None:
+        """Runs once per sampled frame, so each test is one or two numpy calls on cached indices."""
         d, m = self.data, self.model
         t = self.t0 + d.time
-        for name in _WARNINGS:
-            w = d.warning[int(getattr(mujoco.mjtWarning, name))]
-            if w.number:
-                said = f": {self.messages[-1].split(' The simulation')[0]}" if self.messages else ""
-                raise SimulationError(
-                    f"simulation unstable at t = {t:.4f} s: MuJoCo warning {name}{said} "
-                    f"(degree of freedom {w.lastinfo}, body '{self._dof_name(w.lastinfo)}')"
-                )
-        if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
-            bad = int(np.argmax(~np.isfinite(d.qvel))) if not np.all(np.isfinite(d.qvel)) else 0
+        if d.warning.number[self.warnings].any():
+            self._raise_warning(t)
+        qpos, qvel = d.qpos, d.qvel
+        if not (np.isfinite(qpos).all() and np.isfinite(qvel).all()):
+            bad = int(np.argmax(~np.isfinite(qvel))) if not np.isfinite(qvel).all() else 0
             raise SimulationError(
                 f"simulation produced NaN at t = {t:.4f} s: body '{self._dof_name(bad)}', quantity qvel"
             )
-        hinge = np.abs(d.qvel[6:])
+        hinge = np.abs(qvel[6:])
         if hinge.size and hinge.max() > MAX_JOINT_SPEED:
             i = int(np.argmax(hinge)) + 6
             raise SimulationError(
                 f"simulation exploded at t = {t:.4f} s: body '{self._dof_name(i)}' joint speed "
                 f"{hinge.max():.1f} rad/s exceeds {MAX_JOINT_SPEED:g}"
             )
-        speed = float(np.linalg.norm(d.qvel[0:3]))
+        speed = math.hypot(qvel[0], qvel[1], qvel[2])
         if speed > MAX_BODY_SPEED:
             raise SimulationError(
                 f"simulation exploded at t = {t:.4f} s: body '{self.ragdoll.root.name}' speed {speed:.1f} m/s "
@@ -414,6 +520,18 @@ class _Watch:
                     f"{energy:.0f} J exceeds {self.energy_limit:.0f} J without input"
                 )
 
+    def _raise_warning(self, t: float) -> None:
+        """The first of _WARNINGS MuJoCo raised, with its message and the degree of freedom it names."""
+        d = self.data
+        for name in _WARNINGS:
+            w = d.warning[int(getattr(mujoco.mjtWarning, name))]
+            if w.number:
+                said = f": {self.messages[-1].split(' The simulation')[0]}" if self.messages else ""
+                raise SimulationError(
+                    f"simulation unstable at t = {t:.4f} s: MuJoCo warning {name}{said} "
+                    f"(degree of freedom {w.lastinfo}, body '{self._dof_name(w.lastinfo)}')"
+                )
+
     def _dof_name(self, dof: int) -> str:
         if 0 <= dof < 6:
             return self.ragdoll.root.name
@@ -425,9 +543,11 @@ def _samples(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Body rotations (N, B, 4), pelvis positions (N, 3), centre of mass and its velocity (N, 3)."""
     model = ragdoll.model
-    data = mujoco.MjData(model)
-    ids = [b.body_id for b in ragdoll.bodies]
-    rots = np.empty((len(qpos), len(ids), 4))
+    cache = _cache(ragdoll)
+    data = _fresh(cache.kin_data)
+    ids, root = cache.body_ids, int(cache.body_ids[0])
+    # Whole rows are copied per frame (plain memcpy); the bodies are picked out once at the end.
+    xquat = np.empty((len(qpos), model.nbody, 4))
     pelvis = np.empty((len(qpos), 3))
     com = np.empty((len(qpos), 3))
     com_vel = np.empty((len(qpos), 3))
@@ -438,11 +558,11 @@ def _samples(
         mujoco.mj_comPos(model, data)
         mujoco.mj_comVel(model, data)
         mujoco.mj_subtreeVel(model, data)
-        rots[i] = data.xquat[ids]
-        pelvis[i] = data.xpos[ids[0]]
-        com[i] = data.subtree_com[ids[0]]
-        com_vel[i] = data.subtree_linvel[ids[0]]
-    return rots, pelvis, com, com_vel
+        xquat[i] = data.xquat
+        pelvis[i] = data.xpos[root]
+        com[i] = data.subtree_com[root]
+        com_vel[i] = data.subtree_linvel[root]
+    return xquat[:, ids], pelvis, com, com_vel
 
 
 def _to_motion(ragdoll: Ragdoll, held: HeldPose, body_rot: np.ndarray, pelvis_pos: np.ndarray, fps: float) -> Motion:
@@ -451,7 +571,8 @@ def _to_motion(ragdoll: Ragdoll, held: HeldPose, body_rot: np.ndarray, pelvis_po
     n = len(body_rot)
     hpos, hrot = held.global_pos, held.global_rot
     local = np.broadcast_to(held.local_rot, (n,) + held.local_rot.shape).copy()
-    joints = np.array([b.joint for b in ragdoll.bodies])
+    cache = _cache(ragdoll)
+    joints = cache.body_joints
     glob = quat.mul(body_rot, ragdoll.neutral_global_rot[joints])  # (N, B, 4)
     root = ragdoll.root
     parent = skeleton.parents[root.joint]
@@ -464,8 +585,7 @@ def _to_motion(ragdoll: Ragdoll, held: HeldPose, body_rot: np.ndarray, pelvis_po
         root_pos = held.root_pos + (pelvis_pos - hpos[root.joint])
     # Every other body at once: its parent joint's rotation is the parent body's, carried through
     # the held merged bones between them.
-    body_parent = np.array([b.parent for b in ragdoll.bodies[1:]])
-    parent_body_joint = np.array([ragdoll.bodies[b.parent].joint for b in ragdoll.bodies[1:]])
+    body_parent, parent_body_joint = cache.child_parents, cache.child_parent_joints
     parent_joint = skeleton.parents[joints[1:]]
     carry = quat.mul(quat.conj(hrot[parent_body_joint]), hrot[parent_joint])
     parent_rot = quat.mul(glob[:, body_parent], carry)
@@ -501,7 +621,7 @@ def _run(
     _place_bodies(ragdoll, start.held)
     ratio = _set_servos(ragdoll, stiffness, damping_time)
     model.opt.timestep = TIMESTEP
-    data = mujoco.MjData(model)
+    data = _fresh(_cache(ragdoll).sim_data)
     data.qpos[:] = _clamp_to_limits(ragdoll, start.qpos)
     data.qvel[:] = start.qvel
     data.mocap_pos[0] = (0.0, 0.0, start.floor)
@@ -511,6 +631,24 @@ def _run(
     with _CapturedWarnings() as messages:
         return _step_and_sample(ragdoll, data, start, targets, fps, sample_offsets, start_offset, ratio,
                                 impulse, _Watch(ragdoll, data, clock, messages))
+
+
+def _interp_rows(x: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """np.interp(x, arange(K), table[:, a]) for every column a at once, (len(x), A).
+
+    The same arithmetic as numpy's interp (slope (y[j+1] - y[j]) / 1 times (x - j) plus y[j]; the end
+    values outside 0..K-1 and at a sample point exactly), so the servo set-points stay bit-identical.
+    """
+    last = len(table) - 1
+    if last < 1:
+        return np.repeat(table[:1], len(x), axis=0)
+    j = np.clip(np.floor(x), 0, last - 1).astype(int)
+    out = (table[j + 1] - table[j]) * (x - j)[:, None] + table[j]
+    exact = x == j
+    out[exact] = table[j[exact]]
+    out[x < 0] = table[0]
+    out[x >= last] = table[last]
+    return out
 
 
 def _step_and_sample(
@@ -527,7 +665,7 @@ def _step_and_sample(
 ) -> SimResult:
     """The stepping loop of _run: fixed step counts to each sample, explosion checks per sample."""
     model = ragdoll.model
-    act_adr = _actuated_qpos(ragdoll)
+    act_adr = _cache(ragdoll).act_adr
     # Servo set-points for every step, computed at once: the target's hinge angles interpolated at
     # the step's time plus (kv / kp) times its velocity (see the module docstring).
     frame_steps = 1.0 / fps / TIMESTEP
@@ -535,19 +673,13 @@ def _step_and_sample(
     hinges = targets[:, act_adr]
     velocity = np.gradient(hinges, axis=0) * fps if len(hinges) > 1 else np.zeros_like(hinges)
     step_frames = start_offset + np.arange(max(goals[-1], 1)) / frame_steps
-    index = np.arange(len(hinges))
-    ctrl = np.stack(
-        [
-            np.interp(step_frames, index, hinges[:, a]) + ratio[a] * np.interp(step_frames, index, velocity[:, a])
-            for a in range(len(act_adr))
-        ],
-        axis=1,
-    )
+    ctrl = _interp_rows(step_frames, hinges) + ratio * _interp_rows(step_frames, velocity)
     step = 0
-    qpos_out, qvel_out = [], []
-    for goal in goals:
+    data_ctrl = data.ctrl  # one view on MjData's buffer, not a new wrapper per step
+    qpos_arr, qvel_arr = np.empty((len(goals), model.nq)), np.empty((len(goals), model.nv))
+    for n, goal in enumerate(goals):
         while step < goal:
-            data.ctrl[:] = ctrl[step]
+            data_ctrl[:] = ctrl[step]
             if step == 0:
                 # The impulse: force J / dt for this one step, at the hit body's centre of mass.
                 if impulse is not None:
@@ -564,9 +696,8 @@ def _step_and_sample(
                 mujoco.mj_step(model, data)
             step += 1
         watch.check()
-        qpos_out.append(data.qpos.copy())
-        qvel_out.append(data.qvel.copy())
-    qpos_arr, qvel_arr = np.array(qpos_out), np.array(qvel_out)
+        qpos_arr[n] = data.qpos
+        qvel_arr[n] = data.qvel
     rots, pelvis, com, com_vel = _samples(ragdoll, qpos_arr, qvel_arr)
     motion = _to_motion(ragdoll, start.held, rots, pelvis, fps)
     end = SimState(qpos=qpos_arr[-1].copy(), qvel=qvel_arr[-1].copy(), held=start.held, floor=start.floor)
