@@ -1049,19 +1049,13 @@ def keyed_clip(keys: list[Key]) -> Motion:
 LOCOMOTION = ("walk", "run", "idle")  # not reactions: kept out of the library
 
 
-def _step_maker(name: str) -> Callable[[], Motion]:
+def clip_maker(build: Callable[[object], Motion], params: object, what: str) -> Callable[[], Motion]:
+    """A CLIPS entry (a clip function without arguments) for one row of a parameter table."""
+
     def make() -> Motion:
-        return step_clip(STEPS[name])
+        return build(params)
 
-    make.__doc__ = f"The stepping reaction {name}: {STEPS[name]}"
-    return make
-
-
-def _getup_maker(name: str) -> Callable[[], Motion]:
-    def make() -> Motion:
-        return keyed_clip(GETUPS[name])
-
-    make.__doc__ = f"The keyframed get-up {name}."
+    make.__doc__ = what
     return make
 
 
@@ -1076,9 +1070,9 @@ CLIPS: dict[str, Callable[[], Motion]] = {
     "walk": walk_clip,
     "run": run_clip,
     "idle": idle_clip,
-    **{name: _step_maker(name) for name in STEPS},
+    **{name: clip_maker(step_clip, push, f"The stepping reaction {name}: {push}") for name, push in STEPS.items()},
     **sample_falls.CLIPS,
-    **{name: _getup_maker(name) for name in GETUPS},
+    **{name: clip_maker(keyed_clip, keys, f"The keyframed get-up {name}.") for name, keys in GETUPS.items()},
 }
 REACTIONS = [name for name in CLIPS if name not in LOCOMOTION and name not in GETUPS]
 

@@ -353,24 +353,8 @@ def sway_clip(sway: Sway) -> Motion:
     return msc.step_clip(push, plan=sway_plan(sway))
 
 
-def _fall_maker(name: str) -> Callable[[], Motion]:
-    def make() -> Motion:
-        return fall_clip(FALLS[name])
-
-    make.__doc__ = f"The physics fall {name}: {FALLS[name]}"
-    return make
-
-
-def _sway_maker(name: str) -> Callable[[], Motion]:
-    def make() -> Motion:
-        return sway_clip(SWAYS[name])
-
-    make.__doc__ = f"The pendulum sway {name}: {SWAYS[name]}"
-    return make
-
-
 CLIPS: dict[str, Callable[[], Motion]] = {
-    **{name: _sway_maker(name) for name in SWAYS},
-    **{name: _fall_maker(name) for name in FALLS},
+    **{name: msc.clip_maker(sway_clip, sway, f"The pendulum sway {name}: {sway}") for name, sway in SWAYS.items()},
+    **{name: msc.clip_maker(fall_clip, fall, f"The physics fall {name}: {fall}") for name, fall in FALLS.items()},
 }
 NEXT: dict[str, str] = {name: fall.next for name, fall in FALLS.items()}
