@@ -47,11 +47,11 @@ import make_sample_clips as msc
 from make_sample_clips import FORWARD, FPS, SIDES, X_AXIS, pose
 from reactive_anim.core import quat
 from reactive_anim.core.impact import Impact
-from reactive_anim.core.ragdoll import Ragdoll, build_ragdoll
-from reactive_anim.core.simulate import simulate_impact, track
+from reactive_anim.core.ragdoll import ANATOMICAL_LIMITS, Ragdoll, build_ragdoll
+from reactive_anim.core.simulate import ServoGains, simulate_impact, track
 from reactive_anim.core.skeleton import Motion
 
-HINGE_LOCK = np.radians(0.1)  # knee and elbow twist and abduction range on this tool's ragdoll
+HINGE_LOCK = 0.1  # knee and elbow twist and abduction range on this tool's ragdoll
 
 
 @lru_cache(maxsize=1)
@@ -61,18 +61,15 @@ def _start_motions() -> dict[str, Motion]:
 
 @lru_cache(maxsize=1)
 def sample_ragdoll() -> Ragdoll:
-    """The ragdoll of the sample skeleton, neutral pose from the idle stand, knees and elbows hinges."""
-    ragdoll = build_ragdoll(msc.sample_skeleton(), reference=_start_motions()["idle"])
-    model = ragdoll.model
-    for side in "lr":
-        for part in ("knee", "elbow"):
-            for hinge in ("twist", "abd"):
-                model.jnt_range[model.joint(f"{part}_{side}_{hinge}").id] = (-HINGE_LOCK, HINGE_LOCK)
-            # The clip tests allow no hyperextension (the anatomical ragdoll allows 5 degrees);
-            # the limit is soft, so it starts a degree into flexion.
-            flex = model.joint(f"{part}_{side}_flex").id
-            model.jnt_range[flex, 0] = max(model.jnt_range[flex, 0], np.radians(1.0))
-    return ragdoll
+    """The ragdoll of the sample skeleton, neutral pose from the idle stand, knees and elbows hinges.
+
+    The clip tests allow no hyperextension (the anatomical ragdoll allows 5 degrees); the limit is
+    soft, so it starts a degree into flexion."""
+    limits = dict(ANATOMICAL_LIMITS)
+    for part in ("knee", "elbow"):
+        flexion = limits[part][0]
+        limits[part] = ((max(flexion[0], 1.0), flexion[1]), (-HINGE_LOCK, HINGE_LOCK), (-HINGE_LOCK, HINGE_LOCK))
+    return build_ragdoll(msc.sample_skeleton(), profile=limits, reference=_start_motions()["idle"])
 
 
 @dataclass(frozen=True)
@@ -169,7 +166,7 @@ def simulate_fall(fall: Fall) -> FallRun:
                     strength=fall.strength)
     bc = simulate_impact(ragdoll, source, impact)
     target = _target(fall.keys, fall.duration)
-    cd = track(ragdoll, bc.state, target, fall.duration, stiffness=fall.stiffness, damping_time=fall.damping_time)
+    cd = track(ragdoll, bc.state, target, fall.duration, gains=ServoGains(fall.stiffness, fall.damping_time))
     root = np.concatenate([bc.motion.root_pos, cd.motion.root_pos[1:]])
     local = np.concatenate([bc.motion.local_rot, cd.motion.local_rot[1:]])
     motion = _clean(Motion(skeleton=bc.motion.skeleton, fps=float(FPS), root_pos=root, local_rot=local), bc.state.floor)

@@ -52,7 +52,8 @@ swap freedom but the rotation is still rebuilt exactly).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 
 import mujoco
 import numpy as np
@@ -100,6 +101,10 @@ ANATOMICAL_LIMITS = {
     "wrist": ((-85, 85), (-45, 45), (-55, 55)),
 }
 PROFILES = {"paper": PAPER_LIMITS, "anatomical": ANATOMICAL_LIMITS}
+# A profile's limits: per joint kind (Table 1 row, e.g. "knee"), the (flexion, twist, abduction)
+# hinge ranges in degrees, None where the joint has no such hinge.
+HingeRange = tuple[float, float] | None
+JointLimits = Mapping[str, tuple[HingeRange, HingeRange, HingeRange]]
 # Direction a segment moves on positive flexion, in the character's (forward, left, up) frame.
 FLEX_TOWARD = {
     "waist": "forward", "back": "forward", "neck": "forward", "hip": "forward", "knee": "back",
@@ -124,7 +129,7 @@ def part_of(role: str) -> str:
     return role[:-2] if role[-2:] in ("_l", "_r") else role
 
 
-@dataclass
+@dataclass(frozen=True)
 class RagdollBody:
     """One ragdoll body and how it maps to the skeleton.
 
@@ -145,7 +150,7 @@ class RagdollBody:
     members: list[int]
     mass: float
     axes: np.ndarray
-    hinges: list[int] = field(default_factory=list)
+    hinges: tuple[int, ...] = ()
     hinge_sign: np.ndarray = field(default_factory=lambda: np.ones(3))
     ranges: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     body_id: int = -1
@@ -154,14 +159,20 @@ class RagdollBody:
     subtree_mass: float = 0.0
 
 
-@dataclass
+@dataclass(frozen=True)
 class Ragdoll:
-    """A compiled ragdoll and its mapping to the skeleton.
+    """A compiled ragdoll and its mapping to the skeleton; immutable after build_ragdoll.
 
-    neutral_global_rot (J, 4) and neutral_pos (J, 3): the neutral pose, where every MuJoCo joint angle
-    is zero and every body frame equals the world frame.
+    Simulations never write to `model`: each run copies what it changes per run (body offsets,
+    servo gains) into its own Workspace (simulate.py), so runs on several threads do not interfere.
+
+    limits: the profile's hinge ranges in degrees (JointLimits), the one source the model's joint
+      ranges and the simulation's start-state clamp are both made from.
+    neutral_global_rot (J, 4): the neutral pose, where every MuJoCo joint angle is zero and every
+      body frame equals the world frame.
     body_of_joint (J,): the body each skeleton joint belongs to (index into bodies; joints above the
-    pelvis, such as a ground root bone, map to the pelvis body).
+      pelvis, such as a ground root bone, map to the pelvis body).
+    The remaining arrays are flat indices for vectorised conversions, in body or actuator order.
     """
 
     model: mujoco.MjModel
@@ -169,35 +180,45 @@ class Ragdoll:
     skeleton: Skeleton
     roles: dict[str, str]
     profile: str
+    limits: dict[str, tuple[HingeRange, HingeRange, HingeRange]]
     total_mass: float
-    bodies: list[RagdollBody]
+    bodies: tuple[RagdollBody, ...]
     neutral_global_rot: np.ndarray
-    neutral_pos: np.ndarray
     body_of_joint: np.ndarray
-    compile_seconds: float = 0.0
-    # Flat index arrays for vectorised conversions (filled by build_ragdoll):
-    kinematic_joints: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
-    frame_quat: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
-    hinge_body: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
-    hinge_slot: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
-    hinge_qpos: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
-    hinge_dof: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
-    hinge_sign: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    compile_seconds: float
+    kinematic_joints: np.ndarray  # skeleton joints FK must visit: body joints and their ancestors
+    frame_quat: np.ndarray  # (B, 4) joint frame (e1, e2, e3 as columns) per body
+    hinge_body: np.ndarray  # per hinge: its body, Euler slot, qpos and dof address, abduction sign
+    hinge_slot: np.ndarray
+    hinge_qpos: np.ndarray
+    hinge_dof: np.ndarray
+    hinge_sign: np.ndarray
+    body_ids: np.ndarray  # MuJoCo body id per ragdoll body
+    body_joints: np.ndarray  # skeleton joint per ragdoll body
+    body_parents: np.ndarray  # parent body per ragdoll body, the root's own index (0) for the root
+    actuator_qpos: np.ndarray  # qpos address of each actuator's joint
+    actuator_mass: np.ndarray  # mass each actuator's servo moves (mass_moved)
+    limit_lo: np.ndarray  # per hinge (hinge order), its range in radians
+    limit_hi: np.ndarray
+    sole_geoms: np.ndarray  # geom ids of the two feet's sole capsules
+    dof_body: dict[int, str]  # body name per hinge dof address
 
     @property
     def root(self) -> RagdollBody:
         return self.bodies[0]
 
-    def body(self, name: str) -> RagdollBody:
-        for body in self.bodies:
-            if body.name == name:
-                return body
-        names = ", ".join(b.name for b in self.bodies)
-        raise SimulationError(f"the ragdoll has no body '{name}'; its bodies are: {names}")
-
     def body_for_bone(self, bone: str) -> RagdollBody:
         """The body a skeleton bone belongs to (a merged bone belongs to its ancestor's body)."""
         return self.bodies[int(self.body_of_joint[self.skeleton.index(bone)])]
+
+
+def mass_moved(bodies: tuple[RagdollBody, ...], body: RagdollBody) -> float:
+    """The mass a joint's servo moves: its body and everything below, except that a leg joint
+    carries the whole body when its foot is planted (the tree hangs from the pelvis, but a
+    standing character hangs from its feet)."""
+    if part_of(body.name) in ("hip", "knee", "ankle"):
+        return float(sum(b.mass for b in bodies))
+    return body.subtree_mass
 
 
 # ---------------------------------------------------------------------------------------------
@@ -415,7 +436,7 @@ def _mjcf(ragdoll_bodies: list[RagdollBody], pos: np.ndarray, ends: list[np.ndar
         lines = [f'{indent}<body name="{b.name}" pos="{_fmt(origin)}">']
         if b.parent < 0:
             lines.append(f'{indent}  <freejoint name="root"/>')
-        for slot, sign, rng in zip(b.hinges, b.hinge_sign[b.hinges], b.ranges):
+        for slot, sign, rng in zip(b.hinges, b.hinge_sign[list(b.hinges)], b.ranges):
             axis = b.axes[slot] * sign
             damping = JOINT_DAMPING_PER_KG * b.subtree_mass
             stiffness = JOINT_STIFFNESS_PER_KG * b.subtree_mass
@@ -508,7 +529,7 @@ def _compile(text: str) -> mujoco.MjModel:
 def build_ragdoll(
     skeleton: Skeleton,
     roles: dict[str, str] | None = None,
-    profile: str = "anatomical",
+    profile: str | JointLimits = "anatomical",
     total_mass: float = TABLE1_TOTAL_MASS,
     reference: Motion | None = None,
     reference_frame: int = 0,
@@ -517,15 +538,16 @@ def build_ragdoll(
 
     roles: role -> joint name; default `skeleton.roles` or `assign_roles(skeleton)`. A missing
       role raises SkeletonError.
-    profile: "anatomical" (default) or "paper" (Table 1's joint types and limits as printed).
+    profile: "anatomical" (default), "paper" (Table 1's joint types and limits as printed), or the
+      limits themselves (JointLimits, degrees, every joint kind of PROFILES' entries), e.g. a copy
+      of ANATOMICAL_LIMITS with some ranges changed.
     total_mass: Table 1's masses scaled to this total (kg).
     reference: a motion of this skeleton whose frame `reference_frame` shows the character roughly
       standing; it fixes the character's forward and the twist of each segment in the neutral pose.
       Default: the skeleton's rest pose, which must then stand (head above pelvis above ankles);
       Bandai Namco and iClone rest poses do not, so pass a motion for them.
     """
-    if profile not in PROFILES:
-        raise SimulationError(f"unknown ragdoll profile '{profile}'; profiles are: {', '.join(PROFILES)}")
+    profile_name, limits = _resolve_profile(profile)
     if not (np.isfinite(total_mass) and total_mass > 0):
         raise SimulationError(f"total mass must be a positive number of kg, got {total_mass!r}")
     if roles is None:
@@ -536,10 +558,58 @@ def build_ragdoll(
     index = {role: skeleton.index(name) for role, name in roles.items()}
     bodies, body_of_joint = _body_layout(skeleton, roles)
     scale = total_mass / TABLE1_TOTAL_MASS
-    for b in bodies:
-        b.mass *= scale
+    bodies = [replace(b, mass=b.mass * scale) for b in bodies]
+    ref_root, ref_local, ref_offsets, foot_pitch, height = _reference_pose(
+        skeleton, index, reference, reference_frame
+    )
+    neutral_local = _neutral_pose(skeleton, bodies, index, ref_root, ref_local, ref_offsets, foot_pitch)
+    npos, ngrot = forward_kinematics(skeleton, ref_root[None], neutral_local[None], ref_offsets[None])
+    npos, ngrot = npos[0], ngrot[0]
+    ends = [_segment_end(skeleton, bodies, k, npos, ngrot, index) for k in range(len(bodies))]
+    bodies = _with_hinges(bodies, ends, npos, index, limits)
+    size = max(height, 0.5) / 1.75
+    radii = [RADII[part_of(b.name)] * size for b in bodies]
+    balls = {side: _foot_point(skeleton, index, side) for side in ("l", "r")}
+    start = time.perf_counter()
+    text, model = _compile_without_touching_pairs(bodies, npos, ends, radii, index["hip_r"], balls)
+    compile_seconds = time.perf_counter() - start
+    bodies = [_with_addresses(b, model) for b in bodies]
+    return Ragdoll(
+        model=model,
+        mjcf=text,
+        skeleton=skeleton,
+        roles=dict(roles),
+        profile=profile_name,
+        limits=dict(limits),
+        total_mass=float(total_mass),
+        bodies=tuple(bodies),
+        neutral_global_rot=_frozen(ngrot),
+        body_of_joint=_frozen(body_of_joint),
+        compile_seconds=compile_seconds,
+        **_index_arrays(skeleton, bodies, model),
+    )
 
-    # Reference pose, then the neutral pose made from it.
+
+def _resolve_profile(profile: str | JointLimits) -> tuple[str, JointLimits]:
+    """(name, limits) of a profile given by name or as limits; limits must name every joint kind."""
+    if isinstance(profile, str):
+        if profile not in PROFILES:
+            raise SimulationError(f"unknown ragdoll profile '{profile}'; profiles are: {', '.join(PROFILES)}")
+        return profile, PROFILES[profile]
+    missing = [part for part in TABLE1_MASSES if part != "pelvis" and part not in profile]
+    if missing:
+        raise SimulationError(f"the ragdoll's joint limits lack the joints: {', '.join(missing)}")
+    for part, ranges in profile.items():
+        if len(ranges) != 3 or any(r is not None and not r[0] <= r[1] for r in ranges):
+            raise SimulationError(f"joint limits for '{part}' must be three (low, high) ranges or None, got {ranges!r}")
+    return "custom", profile
+
+
+def _reference_pose(
+    skeleton: Skeleton, index: dict[str, int], reference: Motion | None, reference_frame: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
+    """Root position, local rotations and offsets of the reference pose, the stance foot pitch and
+    the character's height (head over ankles); errors when the pose does not stand."""
     if reference is None:
         ref_root = skeleton.offsets[0].copy()
         ref_local = quat.identity((skeleton.num_joints,))
@@ -564,44 +634,41 @@ def build_ragdoll(
             "the reference pose does not stand (head above pelvis above knees, Z up); this skeleton's rest "
             "pose is not a standing pose, so pass a motion of it as `reference`"
         )
-    if reference is None:
-        foot_pitch = _stance_pitch(skeleton, index, pos[None])
-    else:
-        foot_pitch = _stance_pitch(skeleton, index, reference.global_positions())
-    neutral_local = _neutral_pose(skeleton, bodies, index, ref_root, ref_local, ref_offsets, foot_pitch)
-    npos, ngrot = forward_kinematics(skeleton, ref_root[None], neutral_local[None], ref_offsets[None])
-    npos, ngrot = npos[0], ngrot[0]
-    forward, left, up = _character_frame(npos, index)
-    size = max(height, 0.5) / 1.75
+    stance = pos[None] if reference is None else reference.global_positions()
+    foot_pitch = _stance_pitch(skeleton, index, stance)
+    return ref_root, ref_local, ref_offsets, foot_pitch, float(height)
 
-    # Joint frames, hinges and ranges.
-    limits = PROFILES[profile]
-    ends = [_segment_end(skeleton, bodies, k, npos, ngrot, index) for k in range(len(bodies))]
-    for k, b in enumerate(bodies):
-        if k == 0:
-            continue
+
+def _with_hinges(
+    bodies: list[RagdollBody], ends: list[np.ndarray], npos: np.ndarray, index: dict[str, int], limits: JointLimits
+) -> list[RagdollBody]:
+    """Bodies with their joint frames, the hinges the limits give them, and the mass each moves."""
+    forward, left, up = _character_frame(npos, index)
+    out = [bodies[0]]
+    for k, b in enumerate(bodies[1:], 1):
         part = part_of(b.name)
         side = b.name[-1] if b.name[-2:] in ("_l", "_r") else None
-        bone = ends[k] - npos[b.joint]
-        if part in ("waist", "back", "neck"):
-            bone = up
-        b.axes, sign = _joint_axes(part, side, bone, forward, left, up)
-        b.hinge_sign = np.array([1.0, 1.0, sign])
+        bone = up if part in ("waist", "back", "neck") else ends[k] - npos[b.joint]
+        axes, sign = _joint_axes(part, side, bone, forward, left, up)
         kinds = limits[part]
-        b.hinges = [slot for slot in range(3) if kinds[slot] is not None]
-        b.ranges = np.array([kinds[slot] for slot in b.hinges], dtype=float)
-    # Mass each joint moves: its body and everything below.
-    for k in reversed(range(len(bodies))):
-        bodies[k].subtree_mass += bodies[k].mass
-        if bodies[k].parent >= 0:
-            bodies[bodies[k].parent].subtree_mass += bodies[k].subtree_mass
-    radii = [RADII[part_of(b.name)] * size for b in bodies]
+        hinges = tuple(slot for slot in range(3) if kinds[slot] is not None)
+        ranges = np.array([kinds[slot] for slot in hinges], dtype=float).reshape(-1, 2)
+        out.append(replace(b, axes=axes, hinge_sign=np.array([1.0, 1.0, sign]), hinges=hinges, ranges=ranges))
+    # Mass each joint moves: its body and everything below (children come after their parents).
+    subtree = [0.0] * len(out)
+    for k in reversed(range(len(out))):
+        subtree[k] += out[k].mass
+        if out[k].parent >= 0:
+            subtree[out[k].parent] += subtree[k]
+    return [replace(b, subtree_mass=m) for b, m in zip(out, subtree)]
 
-    balls = {side: _foot_point(skeleton, index, side) for side in ("l", "r")}
-    # Compile once, find body pairs already touching in the neutral pose, exclude them, compile again.
-    start = time.perf_counter()
-    text = _mjcf(bodies, npos, ends, radii, [], index["hip_r"], balls)
-    model = _compile(text)
+
+def _compile_without_touching_pairs(
+    bodies: list[RagdollBody], npos: np.ndarray, ends: list[np.ndarray], radii: list[float], hip_r: int,
+    balls: dict[str, int],
+) -> tuple[str, mujoco.MjModel]:
+    """Compile once, find body pairs already touching in the neutral pose, exclude them, compile again."""
+    model = _compile(_mjcf(bodies, npos, ends, radii, [], hip_r, balls))
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     excludes = set()
@@ -609,41 +676,57 @@ def build_ragdoll(
         b1, b2 = int(model.geom_bodyid[c.geom1]), int(model.geom_bodyid[c.geom2])
         if model.body_mocapid[b1] < 0 and model.body_mocapid[b2] < 0 and b1 > 0 and b2 > 0:
             excludes.add(tuple(sorted((model.body(b1).name, model.body(b2).name))))
-    text = _mjcf(bodies, npos, ends, radii, sorted(excludes), index["hip_r"], balls)
-    model = _compile(text)
-    compile_seconds = time.perf_counter() - start
+    text = _mjcf(bodies, npos, ends, radii, sorted(excludes), hip_r, balls)
+    return text, _compile(text)
 
-    for b in bodies:
-        b.body_id = int(model.body(b.name).id)
-        ids = [int(model.joint(f"{b.name}_{HINGE_NAMES[s]}").id) for s in b.hinges]
-        b.qpos_adr = np.array([model.jnt_qposadr[i] for i in ids], dtype=int)
-        b.dof_adr = np.array([model.jnt_dofadr[i] for i in ids], dtype=int)
-    # The joints forward kinematics must visit: every body joint and its ancestors (not fingers or face).
+
+def _with_addresses(body: RagdollBody, model: mujoco.MjModel) -> RagdollBody:
+    ids = [int(model.joint(f"{body.name}_{HINGE_NAMES[s]}").id) for s in body.hinges]
+    return replace(
+        body,
+        body_id=int(model.body(body.name).id),
+        qpos_adr=np.array([model.jnt_qposadr[i] for i in ids], dtype=int),
+        dof_adr=np.array([model.jnt_dofadr[i] for i in ids], dtype=int),
+    )
+
+
+def _frozen(array: np.ndarray) -> np.ndarray:
+    array = np.array(array)
+    array.flags.writeable = False
+    return array
+
+
+def _index_arrays(skeleton: Skeleton, bodies: list[RagdollBody], model: mujoco.MjModel) -> dict:
+    """Ragdoll's flat index arrays (see its docstring), read-only."""
     needed: set[int] = set()
     for b in bodies:
         j = b.joint
         while j >= 0 and j not in needed:
             needed.add(j)
             j = int(skeleton.parents[j])
-    hinge_rows = [(k, slot, adr, dof, b.hinge_sign[slot])
-                  for k, b in enumerate(bodies) for slot, adr, dof in zip(b.hinges, b.qpos_adr, b.dof_adr)]
-    return Ragdoll(
-        kinematic_joints=np.array(sorted(needed), dtype=int),
-        frame_quat=np.array([quat.from_matrix(b.axes.T) for b in bodies]),
-        hinge_body=np.array([r[0] for r in hinge_rows], dtype=int),
-        hinge_slot=np.array([r[1] for r in hinge_rows], dtype=int),
-        hinge_qpos=np.array([r[2] for r in hinge_rows], dtype=int),
-        hinge_dof=np.array([r[3] for r in hinge_rows], dtype=int),
-        hinge_sign=np.array([r[4] for r in hinge_rows], dtype=float),
-        model=model,
-        mjcf=text,
-        skeleton=skeleton,
-        roles=dict(roles),
-        profile=profile,
-        total_mass=float(total_mass),
-        bodies=bodies,
-        neutral_global_rot=ngrot,
-        neutral_pos=npos,
-        body_of_joint=body_of_joint,
-        compile_seconds=compile_seconds,
-    )
+    rows = [(k, slot, adr, dof, b.hinge_sign[slot])
+            for k, b in enumerate(bodies) for slot, adr, dof in zip(b.hinges, b.qpos_adr, b.dof_adr)]  # fmt: skip
+    ranges = np.radians(np.concatenate([b.ranges for b in bodies[1:]])) if len(bodies) > 1 else np.zeros((0, 2))
+    children = tuple(bodies)
+    arrays = {
+        "kinematic_joints": np.array(sorted(needed), dtype=int),
+        "frame_quat": np.array([quat.from_matrix(b.axes.T) for b in bodies]),
+        "hinge_body": np.array([r[0] for r in rows], dtype=int),
+        "hinge_slot": np.array([r[1] for r in rows], dtype=int),
+        "hinge_qpos": np.array([r[2] for r in rows], dtype=int),
+        "hinge_dof": np.array([r[3] for r in rows], dtype=int),
+        "hinge_sign": np.array([r[4] for r in rows], dtype=float),
+        "body_ids": np.array([b.body_id for b in bodies], dtype=int),
+        "body_joints": np.array([b.joint for b in bodies], dtype=int),
+        "body_parents": np.array([max(b.parent, 0) for b in bodies], dtype=int),
+        "actuator_qpos": model.jnt_qposadr[model.actuator_trnid[:, 0]].astype(int),
+        "actuator_mass": np.concatenate(
+            [np.full(len(b.hinges), mass_moved(children, b)) for b in bodies[1:]] or [np.zeros(0)]
+        ),
+        "limit_lo": ranges[:, 0],
+        "limit_hi": ranges[:, 1],
+        "sole_geoms": np.array([int(model.geom(name).id) for name in ("ankle_l", "ankle_r")], dtype=int),
+    }
+    frozen: dict = {name: _frozen(a) for name, a in arrays.items()}
+    frozen["dof_body"] = {int(adr): b.name for b in bodies for adr in b.dof_adr}
+    return frozen

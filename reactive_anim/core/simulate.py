@@ -39,14 +39,20 @@ from the simulation; joints merged into a body (fingers, toes, clavicles, twist 
 joints above the pelvis keep their mocap local rotation from the start frame; later stages blend
 the result back into mocap and bake it onto the character.
 
-A Ragdoll's MuJoCo model is adjusted per run (body offsets to the start frame's merged bones and
-actuator gains) and its MjData buffers are reused across runs (see _RagdollCache), so run one
-simulation at a time per Ragdoll.
+Per-run state: a Ragdoll is immutable. What a run changes (body offsets to the start frame's merged
+bones, servo gains) lives in a Workspace: a copy of the ragdoll's model and its own MjData. Pass one
+Workspace per thread to reuse it (making one costs about 1 ms, a tenth of a BC window); without one,
+each call makes its own. MuJoCo's warning text is caught per thread, so simulations on several
+threads at once give the same results as one after the other.
 """
 
 from __future__ import annotations
 
+import copy
 import math
+import sys
+import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import mujoco
@@ -55,7 +61,7 @@ import numpy as np
 from . import quat
 from .errors import SimulationError, SkeletonError
 from .impact import Impact
-from .ragdoll import TIMESTEP, Ragdoll, part_of
+from .ragdoll import TIMESTEP, Ragdoll
 from .skeleton import Motion
 
 REACTION_WINDOW = 0.25  # seconds, BC: about a human reaction time (paper: ~15 frames)
@@ -68,6 +74,7 @@ FLOOR_TOLERANCE = 0.25  # m a body origin may sink below the floor before it cou
 GROUND_SPAN = 0.25  # s either side of the start frame in which the stance sole finds the ground
 ENERGY_ALLOWANCE_SPEED = 5.0  # m/s: energy beyond 1/2 M v^2 above the start counts as an explosion
 _WARNINGS = ("mjWARN_BADQACC", "mjWARN_BADQVEL", "mjWARN_BADQPOS", "mjWARN_CNSTRFULL", "mjWARN_CONTACTFULL")
+_WARNING_IDS = np.array([int(getattr(mujoco.mjtWarning, name)) for name in _WARNINGS], dtype=int)
 
 
 @dataclass
@@ -113,72 +120,53 @@ class SimResult:
     state: SimState
 
 
-# ---------------------------------------------------------------------------------------------
-# Per-ragdoll constants
+@dataclass(frozen=True)
+class ServoGains:
+    """Eq. 2's PD gains, per kg the joint moves (see mass_moved): kp = stiffness * mass (N·m/rad),
+    kv = damping_time * kp (N·m·s/rad)."""
+
+    stiffness: float = CD_STIFFNESS
+    damping_time: float = CD_DAMPING_TIME
 
 
-@dataclass
-class _RagdollCache:
-    """What every run needs but depends only on the ragdoll: index arrays, masses, sole geoms and two
-    reusable MjData. Allocating an MjData costs ~0.5 ms, more than a tenth of a BC window; a reused
-    one is put back by mj_resetData, which is what the MjData constructor itself calls, so the
-    results are the same bit for bit."""
-
-    model: mujoco.MjModel
-    sim_data: mujoco.MjData  # the stepped state of _run
-    kin_data: mujoco.MjData  # kinematics only: ground level, samples
-    body_ids: np.ndarray  # MuJoCo body id per ragdoll body
-    body_joints: np.ndarray  # skeleton joint per ragdoll body
-    body_parents: np.ndarray  # parent body per ragdoll body, the root's own index (0) for the root
-    child_joints: np.ndarray  # bodies[1:]: their joints
-    child_parents: np.ndarray  # bodies[1:]: index of the parent body
-    child_parent_joints: np.ndarray  # bodies[1:]: the parent body's joint
-    mass_per_actuator: np.ndarray  # mass_moved of each actuator's body
-    act_adr: np.ndarray  # qpos address of each actuator's joint
-    limit_adr: np.ndarray  # hinge qpos addresses with their limits in radians
-    limit_lo: np.ndarray
-    limit_hi: np.ndarray
-    soles: np.ndarray  # geom ids of the two sole capsules
-    total_mass: float
-    warnings: np.ndarray  # mjtWarning index per name in _WARNINGS
-    dof_body: dict[int, str]
+CD_GAINS = ServoGains()
+BC_GAINS = ServoGains(stiffness=CD_STIFFNESS * BC_SERVO_FRACTION)
 
 
-def _cache(ragdoll: Ragdoll) -> _RagdollCache:
-    """The ragdoll's constants, built on first use and kept on the Ragdoll (rebuilt if its model changes)."""
-    cache = getattr(ragdoll, "_sim_cache", None)
-    if cache is not None and cache.model is ragdoll.model:
-        return cache
-    model = ragdoll.model
-    children = ragdoll.bodies[1:]
-    limit_adr = [body.qpos_adr for body in children]
-    limits = [np.radians(body.ranges) for body in children]
-    cache = _RagdollCache(
-        model=model,
-        sim_data=mujoco.MjData(model),
-        kin_data=mujoco.MjData(model),
-        body_ids=np.array([b.body_id for b in ragdoll.bodies], dtype=int),
-        body_joints=np.array([b.joint for b in ragdoll.bodies], dtype=int),
-        body_parents=np.array([max(b.parent, 0) for b in ragdoll.bodies], dtype=int),
-        child_joints=np.array([b.joint for b in children], dtype=int),
-        child_parents=np.array([b.parent for b in children], dtype=int),
-        child_parent_joints=np.array([ragdoll.bodies[b.parent].joint for b in children], dtype=int),
-        mass_per_actuator=np.concatenate([np.full(len(b.hinges), mass_moved(ragdoll, b)) for b in children]),
-        act_adr=_actuated_qpos(ragdoll),
-        limit_adr=np.concatenate(limit_adr).astype(int) if limit_adr else np.zeros(0, dtype=int),
-        limit_lo=np.concatenate([r[:, 0] for r in limits]) if limits else np.zeros(0),
-        limit_hi=np.concatenate([r[:, 1] for r in limits]) if limits else np.zeros(0),
-        soles=np.array([int(model.geom(name).id) for name in ("ankle_l", "ankle_r")], dtype=int),
-        total_mass=float(np.sum(model.body_mass)),
-        warnings=np.array([int(getattr(mujoco.mjtWarning, name)) for name in _WARNINGS], dtype=int),
-        dof_body={int(adr): body.name for body in ragdoll.bodies for adr in body.dof_adr},
-    )
-    ragdoll._sim_cache = cache
-    return cache
+class Workspace:
+    """One simulation's own MuJoCo state: a copy of the ragdoll's model, whose body offsets and servo
+    gains each run sets, and two MjData (the stepped state; kinematics for ground level and samples).
+
+    Reuse one per thread: a reused MjData is put back by mj_resetData, which is what the MjData
+    constructor itself calls, so results are the same bit for bit. Two runs cannot share one at
+    once (SimulationError)."""
+
+    def __init__(self, ragdoll: Ragdoll):
+        self.ragdoll = ragdoll
+        self.model = copy.copy(ragdoll.model)
+        self.sim_data = mujoco.MjData(self.model)
+        self.kin_data = mujoco.MjData(self.model)
+        self._busy = threading.Lock()
+
+    def __enter__(self) -> Workspace:
+        if not self._busy.acquire(blocking=False):
+            raise SimulationError("this simulation workspace is in use by another run; give each thread its own")
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._busy.release()
+
+
+def _workspace(ragdoll: Ragdoll, workspace: Workspace | None) -> Workspace:
+    if workspace is None:
+        return Workspace(ragdoll)
+    if workspace.ragdoll is not ragdoll:
+        raise SimulationError("the workspace was made for another ragdoll")
+    return workspace
 
 
 def _fresh(data: mujoco.MjData) -> mujoco.MjData:
-    """A cached MjData put back into the state of a newly made one."""
+    """A reused MjData put back into the state of a newly made one."""
     mujoco.mj_resetData(data.model, data)
     return data
 
@@ -243,7 +231,7 @@ class _MocapPoses:
     global_rot: np.ndarray  # (N, J, 4), kinematic joints only
 
     def held(self, k: int) -> HeldPose:
-        """Row k as a HeldPose, with arrays of its own (as _held_pose makes them)."""
+        """Row k as a HeldPose, with arrays of its own."""
         return HeldPose(local_rot=self.local_rot[k].copy(), offsets=np.array(self.offsets[k], dtype=float),
                         root_pos=self.root_pos[k].copy(), global_pos=self.global_pos[k].copy(),
                         global_rot=self.global_rot[k].copy())
@@ -269,8 +257,7 @@ def _mocap_poses(ragdoll: Ragdoll, motion: Motion, frames: np.ndarray) -> _Mocap
     root_pos = motion.root_pos[frames]
     local_rot = quat.normalize(motion.local_rot[frames])
     pos, grot = _kinematics(ragdoll, root_pos, local_rot, offsets)
-    cache = _cache(ragdoll)
-    joints, parents = cache.body_joints, cache.body_parents
+    joints, parents = ragdoll.body_joints, ragdoll.body_parents
     # Body rotation in MuJoCo = global rotation relative to the neutral pose.
     x = quat.make_continuous(quat.mul(grot[:, joints], quat.conj(ragdoll.neutral_global_rot[joints])))
     qpos = np.zeros((len(frames), ragdoll.model.nq))
@@ -284,14 +271,6 @@ def _mocap_poses(ragdoll: Ragdoll, motion: Motion, frames: np.ndarray) -> _Mocap
     qpos[:, ragdoll.hinge_qpos] = np.unwrap(hinge, axis=0)
     return _MocapPoses(qpos=qpos, local_rot=local_rot, offsets=offsets, root_pos=root_pos, global_pos=pos,
                        global_rot=grot)
-
-
-def _held_pose(ragdoll: Ragdoll, motion: Motion, frame: int) -> HeldPose:
-    local_rot = quat.normalize(motion.local_rot[frame])
-    offsets = np.array(motion.joint_offsets()[frame], dtype=float)
-    root_pos = motion.root_pos[frame].copy()
-    pos, rot = _kinematics(ragdoll, root_pos[None], local_rot[None], offsets[None])
-    return HeldPose(local_rot=local_rot, offsets=offsets, root_pos=root_pos, global_pos=pos[0], global_rot=rot[0])
 
 
 def _interp_qpos(table: np.ndarray, t: float) -> np.ndarray:
@@ -310,17 +289,17 @@ class _MocapTable:
 
     first: int
     qpos: np.ndarray
-    poses: _MocapPoses | None = None
+    poses: _MocapPoses
 
     def at(self, frame: float) -> np.ndarray:
         return _interp_qpos(self.qpos, frame - self.first)
 
-    def held(self, ragdoll: Ragdoll, motion: Motion, frame: int) -> HeldPose:
-        """_held_pose(ragdoll, motion, frame), from the table's FK when the frame is in it."""
+    def held(self, frame: int) -> HeldPose:
+        """The held pose of a frame of the table."""
         k = frame - self.first
-        if self.poses is not None and 0 <= k < len(self.qpos):
-            return self.poses.held(k)
-        return _held_pose(ragdoll, motion, frame)
+        if not 0 <= k < len(self.qpos):
+            raise SimulationError(f"frame {frame} is outside the pose table's frames {self.first}..{self.first + len(self.qpos) - 1}")
+        return self.poses.held(k)
 
 
 def _mocap_table(ragdoll: Ragdoll, motion: Motion, lo: float, hi: float) -> _MocapTable:
@@ -330,14 +309,27 @@ def _mocap_table(ragdoll: Ragdoll, motion: Motion, lo: float, hi: float) -> _Moc
     return _MocapTable(first, poses.qpos, poses)
 
 
-def state_from_mocap(ragdoll: Ragdoll, motion: Motion, frame: float, _table: _MocapTable | None = None) -> SimState:
+def state_from_mocap(
+    ragdoll: Ragdoll, motion: Motion, frame: float, workspace: Workspace | None = None
+) -> SimState:
     """Ragdoll state at a (possibly fractional) frame: pose from the rotations, velocity by central
     differences over one frame either side, so the character keeps the motion's momentum; and the
     ground height the mocap stands on there (see ground_level)."""
+    _check_frame(motion, frame)
+    reach = GROUND_SPAN * motion.fps
+    table = _mocap_table(ragdoll, motion, frame - reach - 1, frame + reach + 1)
+    with _workspace(ragdoll, workspace) as ws:
+        return _state_from_table(ws, motion, frame, table)
+
+
+def _check_frame(motion: Motion, frame: float) -> None:
     if not (np.isfinite(frame) and 0 <= frame <= motion.num_frames - 1):
         raise SimulationError(f"frame {frame} is outside the motion's frames 0..{motion.num_frames - 1}")
-    reach = GROUND_SPAN * motion.fps
-    table = _table or _mocap_table(ragdoll, motion, frame - reach - 1, frame + reach + 1)
+
+
+def _state_from_table(ws: Workspace, motion: Motion, frame: float, table: _MocapTable) -> SimState:
+    """state_from_mocap from a table that covers GROUND_SPAN and one frame either side of `frame`."""
+    ragdoll = ws.ragdoll
     last = motion.num_frames - 1
     before_f, after_f = max(frame - 1.0, 0.0), min(frame + 1.0, float(last))
     before, qpos, after = table.at(before_f), table.at(frame), table.at(after_f)
@@ -351,11 +343,14 @@ def state_from_mocap(ragdoll: Ragdoll, motion: Motion, frame: float, _table: _Mo
         angle = 2.0 * np.arctan2(np.linalg.norm(d[1:]), d[0])
         qvel[3:6] = d[1:] / max(np.linalg.norm(d[1:]), 1e-12) * angle / span
         qvel[ragdoll.hinge_dof] = (after[ragdoll.hinge_qpos] - before[ragdoll.hinge_qpos]) / span
-    held = table.held(ragdoll, motion, int(round(frame)))
-    return SimState(qpos=qpos, qvel=qvel, held=held, floor=_ground_level(ragdoll, table, frame, held, reach))
+    held = table.held(int(round(frame)))
+    floor = _ground_level(ws, table, frame, held, GROUND_SPAN * motion.fps)
+    return SimState(qpos=qpos, qvel=qvel, held=held, floor=floor)
 
 
-def ground_level(ragdoll: Ragdoll, motion: Motion, frame: float, span: float = GROUND_SPAN) -> float:
+def ground_level(
+    ragdoll: Ragdoll, motion: Motion, frame: float, span: float = GROUND_SPAN, workspace: Workspace | None = None
+) -> float:
     """Height of the ground the mocap walks on near `frame`: the lowest point of the ragdoll's soles,
     per frame, within `span` seconds either side, and of those the median.
 
@@ -364,15 +359,15 @@ def ground_level(ragdoll: Ragdoll, motion: Motion, frame: float, span: float = G
     """
     reach = span * motion.fps
     table = _mocap_table(ragdoll, motion, frame - reach, frame + reach)
-    return _ground_level(ragdoll, table, frame, table.held(ragdoll, motion, int(round(frame))), reach)
+    with _workspace(ragdoll, workspace) as ws:
+        return _ground_level(ws, table, frame, table.held(int(round(frame))), reach)
 
 
-def _ground_level(ragdoll: Ragdoll, table: _MocapTable, frame: float, held: HeldPose, reach: float) -> float:
-    _place_bodies(ragdoll, held)
-    model = ragdoll.model
-    cache = _cache(ragdoll)
-    data = _fresh(cache.kin_data)
-    soles = cache.soles
+def _ground_level(ws: Workspace, table: _MocapTable, frame: float, held: HeldPose, reach: float) -> float:
+    _place_bodies(ws, held)
+    model = ws.model
+    data = _fresh(ws.kin_data)
+    soles = ws.ragdoll.sole_geoms
     numbers = table.first + np.arange(len(table.qpos))
     rows = np.flatnonzero(np.abs(numbers - frame) <= reach)
     # Per frame only the kinematics; the sole heights of all frames at once afterwards.
@@ -393,83 +388,95 @@ def _ground_level(ragdoll: Ragdoll, table: _MocapTable, frame: float, held: Held
 
 
 # ---------------------------------------------------------------------------------------------
-# Model set-up per run
+# Model set-up per run (on the workspace's copy of the model)
 
 
-def _place_bodies(ragdoll: Ragdoll, held: HeldPose) -> None:
+def _place_bodies(ws: Workspace, held: HeldPose) -> None:
     """Body offsets from the held frame: merged bones between two bodies (clavicles, helper bones)
     and animated bone lengths keep the start frame's values, so FK of the output matches MuJoCo."""
-    cache = _cache(ragdoll)
-    joints, parent_joints, ids = cache.child_joints, cache.child_parent_joints, cache.body_ids[1:]
+    ragdoll = ws.ragdoll
+    joints = ragdoll.body_joints[1:]
+    parent_joints = ragdoll.body_joints[ragdoll.body_parents[1:]]
     to_neutral = quat.mul(ragdoll.neutral_global_rot[parent_joints], quat.conj(held.global_rot[parent_joints]))
-    ragdoll.model.body_pos[ids] = quat.rotate(to_neutral, held.global_pos[joints] - held.global_pos[parent_joints])
+    ws.model.body_pos[ragdoll.body_ids[1:]] = quat.rotate(
+        to_neutral, held.global_pos[joints] - held.global_pos[parent_joints]
+    )
 
 
-def mass_moved(ragdoll: Ragdoll, body) -> float:
-    """The mass a joint's servo moves: its body and everything below, except that a leg joint
-    carries the whole body when its foot is planted (the tree hangs from the pelvis, but a
-    standing character hangs from its feet)."""
-    if part_of(body.name) in ("hip", "knee", "ankle"):
-        return float(sum(b.mass for b in ragdoll.bodies))
-    return body.subtree_mass
-
-
-def _set_servos(ragdoll: Ragdoll, stiffness: float, damping_time: float) -> np.ndarray:
-    """Position-actuator gains kp = stiffness * mass moved, kv = damping_time * kp; returns kv/kp per actuator."""
-    model = ragdoll.model
-    kp = stiffness * _cache(ragdoll).mass_per_actuator
-    kv = kp * damping_time
+def _set_servos(ws: Workspace, gains: ServoGains) -> None:
+    """Position-actuator gains kp = stiffness * mass moved, kv = damping_time * kp."""
+    model = ws.model
+    kp = gains.stiffness * ws.ragdoll.actuator_mass
+    kv = kp * gains.damping_time
     model.actuator_gainprm[:, 0] = kp
     model.actuator_biasprm[:, 0] = 0.0
     model.actuator_biasprm[:, 1] = -kp
     model.actuator_biasprm[:, 2] = -kv
-    return np.full(model.nu, damping_time)
-
-
-def _actuated_qpos(ragdoll: Ragdoll) -> np.ndarray:
-    """qpos address of each actuator's joint, in actuator order."""
-    return ragdoll.model.jnt_qposadr[ragdoll.model.actuator_trnid[:, 0]]
 
 
 def _clamp_to_limits(ragdoll: Ragdoll, qpos: np.ndarray) -> np.ndarray:
-    """Mocap beyond a profile's limits starts at the limit, so the first step does not snap it back."""
-    cache = _cache(ragdoll)
+    """Mocap beyond the profile's limits starts at the limit, so the first step does not snap it back."""
     qpos = qpos.copy()
-    qpos[cache.limit_adr] = np.clip(qpos[cache.limit_adr], cache.limit_lo, cache.limit_hi)
+    qpos[ragdoll.hinge_qpos] = np.clip(qpos[ragdoll.hinge_qpos], ragdoll.limit_lo, ragdoll.limit_hi)
     return qpos
 
 
+# MuJoCo's warning handler is one per process; this one hands the text to the run on the calling
+# thread (MuJoCo warns from the thread that steps), and to the previous handler, or stderr, otherwise.
+_warning_sink = threading.local()
+_handler_lock = threading.Lock()
+_handler_installed = False
+
+
+def _install_warning_handler() -> None:
+    global _handler_installed
+    with _handler_lock:
+        if _handler_installed:
+            return
+        previous: Callable[[str], None] | None = mujoco.get_mju_user_warning()
+
+        def handle(message: str) -> None:
+            messages = getattr(_warning_sink, "messages", None)
+            if messages is not None:
+                messages.append(message)
+            elif previous is not None:
+                previous(message)
+            else:
+                sys.stderr.write(f"MuJoCo warning: {message}\n")
+
+        mujoco.set_mju_user_warning(handle)
+        _handler_installed = True
+
+
 class _CapturedWarnings:
-    """MuJoCo's warning text, caught for the duration of a run instead of printed and appended to
-    MUJOCO_LOG.TXT in the working folder; the previous handler is restored afterwards. (The handler
-    is process-wide: run simulations from one thread at a time.)"""
+    """MuJoCo's warning text of this thread's run, caught instead of printed and appended to
+    MUJOCO_LOG.TXT in the working folder."""
 
     def __enter__(self) -> list[str]:
-        self.previous = mujoco.get_mju_user_warning()
+        _install_warning_handler()
         self.messages: list[str] = []
-        mujoco.set_mju_user_warning(self.messages.append)
+        _warning_sink.messages = self.messages
         return self.messages
 
-    def __exit__(self, *exc) -> None:
-        mujoco.set_mju_user_warning(self.previous)
+    def __exit__(self, *exc: object) -> None:
+        _warning_sink.messages = None
 
 
 class _Watch:
     """Explosion detection after each sampled frame; raises SimulationError naming time, body, quantity."""
 
-    def __init__(self, ragdoll: Ragdoll, data: mujoco.MjData, t0: float, messages: list[str]):
+    def __init__(self, ws: Workspace, data: mujoco.MjData, t0: float, messages: list[str]):
         self.messages = messages
-        self.ragdoll = ragdoll
-        self.model = ragdoll.model
+        self.ragdoll = ws.ragdoll
+        self.model = ws.model
         self.data = data
         self.t0 = t0
-        self.energy_limit = None
+        self.energy_limit: float | None = None
         self.floor = float(data.mocap_pos[0, 2])
-        cache = _cache(ragdoll)
-        self.body_ids = cache.body_ids
-        self.dof_body = cache.dof_body
-        self.warnings = cache.warnings
-        self.mass = cache.total_mass
+        self.body_ids = ws.ragdoll.body_ids
+        self.dof_body = ws.ragdoll.dof_body
+        self.warnings = _WARNING_IDS
+        self.mass = float(np.sum(ws.model.body_mass))
 
     def energy(self) -> float:
         """Kinetic + potential energy, computed on demand (cheaper than MuJoCo's per-step flag)."""
@@ -523,8 +530,8 @@ class _Watch:
     def _raise_warning(self, t: float) -> None:
         """The first of _WARNINGS MuJoCo raised, with its message and the degree of freedom it names."""
         d = self.data
-        for name in _WARNINGS:
-            w = d.warning[int(getattr(mujoco.mjtWarning, name))]
+        for name, index in zip(_WARNINGS, _WARNING_IDS):
+            w = d.warning[int(index)]
             if w.number:
                 said = f": {self.messages[-1].split(' The simulation')[0]}" if self.messages else ""
                 raise SimulationError(
@@ -538,14 +545,12 @@ class _Watch:
         return self.dof_body.get(int(dof), "?")
 
 
-def _samples(
-    ragdoll: Ragdoll, qpos: np.ndarray, qvel: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _samples(ws: Workspace, qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Body rotations (N, B, 4), pelvis positions (N, 3), centre of mass and its velocity (N, 3)."""
-    model = ragdoll.model
-    cache = _cache(ragdoll)
-    data = _fresh(cache.kin_data)
-    ids, root = cache.body_ids, int(cache.body_ids[0])
+    model = ws.model
+    data = _fresh(ws.kin_data)
+    ids = ws.ragdoll.body_ids
+    root = int(ids[0])
     # Whole rows are copied per frame (plain memcpy); the bodies are picked out once at the end.
     xquat = np.empty((len(qpos), model.nbody, 4))
     pelvis = np.empty((len(qpos), 3))
@@ -571,8 +576,7 @@ def _to_motion(ragdoll: Ragdoll, held: HeldPose, body_rot: np.ndarray, pelvis_po
     n = len(body_rot)
     hpos, hrot = held.global_pos, held.global_rot
     local = np.broadcast_to(held.local_rot, (n,) + held.local_rot.shape).copy()
-    cache = _cache(ragdoll)
-    joints = cache.body_joints
+    joints = ragdoll.body_joints
     glob = quat.mul(body_rot, ragdoll.neutral_global_rot[joints])  # (N, B, 4)
     root = ragdoll.root
     parent = skeleton.parents[root.joint]
@@ -585,7 +589,8 @@ def _to_motion(ragdoll: Ragdoll, held: HeldPose, body_rot: np.ndarray, pelvis_po
         root_pos = held.root_pos + (pelvis_pos - hpos[root.joint])
     # Every other body at once: its parent joint's rotation is the parent body's, carried through
     # the held merged bones between them.
-    body_parent, parent_body_joint = cache.child_parents, cache.child_parent_joints
+    body_parent = ragdoll.body_parents[1:]
+    parent_body_joint = joints[body_parent]
     parent_joint = skeleton.parents[joints[1:]]
     carry = quat.mul(quat.conj(hrot[parent_body_joint]), hrot[parent_joint])
     parent_rot = quat.mul(glob[:, body_parent], carry)
@@ -599,38 +604,40 @@ def _to_motion(ragdoll: Ragdoll, held: HeldPose, body_rot: np.ndarray, pelvis_po
 # The run loop
 
 
-def _run(
-    ragdoll: Ragdoll,
-    start: SimState,
-    targets: np.ndarray,
-    fps: float,
-    sample_offsets: np.ndarray,
-    start_offset: float,
-    stiffness: float,
-    damping_time: float,
-    impulse: tuple[int, np.ndarray] | None,
-    clock: float,
-) -> SimResult:
-    """Step from `start` and sample at frame times.
+@dataclass(frozen=True)
+class _Plan:
+    """What one run steps through, all on the targets' clock (target frame 0 at time 0).
 
-    targets: (K, nq) mocap qpos per target frame, target frame 0 at time 0 of the targets' clock;
-    the simulation starts at `start_offset` frames on that clock and samples at `sample_offsets`
-    (frames on that clock, >= start_offset). Step counts depend only on these numbers.
+    targets: (K, nq) mocap qpos per target frame. The simulation starts at `start_offset` frames and
+    samples at `sample_offsets` (frames, >= start_offset); step counts depend only on these numbers.
+    impulse: (MuJoCo body id, force) applied for the first step, or None.
+    clock: the start's time in seconds on the caller's clock, for error messages.
     """
-    model = ragdoll.model
-    _place_bodies(ragdoll, start.held)
-    ratio = _set_servos(ragdoll, stiffness, damping_time)
+
+    targets: np.ndarray
+    fps: float
+    sample_offsets: np.ndarray
+    start_offset: float
+    gains: ServoGains
+    impulse: tuple[int, np.ndarray] | None
+    clock: float
+
+
+def _run(ws: Workspace, start: SimState, plan: _Plan) -> SimResult:
+    """Step from `start` and sample at frame times."""
+    model = ws.model
+    _place_bodies(ws, start.held)
+    _set_servos(ws, plan.gains)
     model.opt.timestep = TIMESTEP
-    data = _fresh(_cache(ragdoll).sim_data)
-    data.qpos[:] = _clamp_to_limits(ragdoll, start.qpos)
+    data = _fresh(ws.sim_data)
+    data.qpos[:] = _clamp_to_limits(ws.ragdoll, start.qpos)
     data.qvel[:] = start.qvel
     data.mocap_pos[0] = (0.0, 0.0, start.floor)
     if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
         raise SimulationError("the start state holds NaN or infinite values")
     mujoco.mj_forward(model, data)
     with _CapturedWarnings() as messages:
-        return _step_and_sample(ragdoll, data, start, targets, fps, sample_offsets, start_offset, ratio,
-                                impulse, _Watch(ragdoll, data, clock, messages))
+        return _step_and_sample(ws, start, plan, _Watch(ws, data, plan.clock, messages))
 
 
 def _interp_rows(x: np.ndarray, table: np.ndarray) -> np.ndarray:
@@ -651,29 +658,22 @@ def _interp_rows(x: np.ndarray, table: np.ndarray) -> np.ndarray:
     return out
 
 
-def _step_and_sample(
-    ragdoll: Ragdoll,
-    data: mujoco.MjData,
-    start: SimState,
-    targets: np.ndarray,
-    fps: float,
-    sample_offsets: np.ndarray,
-    start_offset: float,
-    ratio: np.ndarray,
-    impulse: tuple[int, np.ndarray] | None,
-    watch: _Watch,
-) -> SimResult:
+def _servo_setpoints(ws: Workspace, plan: _Plan, steps: int) -> np.ndarray:
+    """Servo set-points for every step, (steps, nu): the target's hinge angles interpolated at the
+    step's time plus (kv / kp) times its velocity (see the module docstring)."""
+    hinges = plan.targets[:, ws.ragdoll.actuator_qpos]
+    velocity = np.gradient(hinges, axis=0) * plan.fps if len(hinges) > 1 else np.zeros_like(hinges)
+    step_frames = plan.start_offset + np.arange(steps) / (1.0 / plan.fps / TIMESTEP)
+    ratio = np.full(ws.model.nu, plan.gains.damping_time)
+    return _interp_rows(step_frames, hinges) + ratio * _interp_rows(step_frames, velocity)
+
+
+def _step_and_sample(ws: Workspace, start: SimState, plan: _Plan, watch: _Watch) -> SimResult:
     """The stepping loop of _run: fixed step counts to each sample, explosion checks per sample."""
-    model = ragdoll.model
-    act_adr = _cache(ragdoll).act_adr
-    # Servo set-points for every step, computed at once: the target's hinge angles interpolated at
-    # the step's time plus (kv / kp) times its velocity (see the module docstring).
-    frame_steps = 1.0 / fps / TIMESTEP
-    goals = [int(round((sample - start_offset) * frame_steps)) for sample in sample_offsets]
-    hinges = targets[:, act_adr]
-    velocity = np.gradient(hinges, axis=0) * fps if len(hinges) > 1 else np.zeros_like(hinges)
-    step_frames = start_offset + np.arange(max(goals[-1], 1)) / frame_steps
-    ctrl = _interp_rows(step_frames, hinges) + ratio * _interp_rows(step_frames, velocity)
+    model, data = ws.model, ws.sim_data
+    frame_steps = 1.0 / plan.fps / TIMESTEP
+    goals = [int(round((sample - plan.start_offset) * frame_steps)) for sample in plan.sample_offsets]
+    ctrl = _servo_setpoints(ws, plan, max(goals[-1], 1))
     step = 0
     data_ctrl = data.ctrl  # one view on MjData's buffer, not a new wrapper per step
     qpos_arr, qvel_arr = np.empty((len(goals), model.nq)), np.empty((len(goals), model.nv))
@@ -681,28 +681,34 @@ def _step_and_sample(
         while step < goal:
             data_ctrl[:] = ctrl[step]
             if step == 0:
-                # The impulse: force J / dt for this one step, at the hit body's centre of mass.
-                if impulse is not None:
-                    body_id, force = impulse
-                    point = data.xipos[body_id].copy()
-                    mujoco.mj_applyFT(model, data, force, np.zeros(3), point, body_id, data.qfrc_applied)
-                mujoco.mj_step(model, data)
-                data.qfrc_applied[:] = 0.0
-                watch.check()
-                # Energy after the impulse is the reference: from here on nothing adds energy but the servos.
-                mujoco.mj_forward(model, data)
-                watch.arm_energy()
+                _first_step(model, data, plan.impulse, watch)
             else:
                 mujoco.mj_step(model, data)
             step += 1
         watch.check()
         qpos_arr[n] = data.qpos
         qvel_arr[n] = data.qvel
-    rots, pelvis, com, com_vel = _samples(ragdoll, qpos_arr, qvel_arr)
-    motion = _to_motion(ragdoll, start.held, rots, pelvis, fps)
+    rots, pelvis, com, com_vel = _samples(ws, qpos_arr, qvel_arr)
+    motion = _to_motion(ws.ragdoll, start.held, rots, pelvis, plan.fps)
     end = SimState(qpos=qpos_arr[-1].copy(), qvel=qvel_arr[-1].copy(), held=start.held, floor=start.floor)
-    return SimResult(motion=motion, frames=np.asarray(sample_offsets, dtype=float), qpos=qpos_arr, qvel=qvel_arr,
-                     com=com, com_velocity=com_vel, state=end)
+    return SimResult(motion=motion, frames=np.asarray(plan.sample_offsets, dtype=float), qpos=qpos_arr,
+                     qvel=qvel_arr, com=com, com_velocity=com_vel, state=end)  # fmt: skip
+
+
+def _first_step(
+    model: mujoco.MjModel, data: mujoco.MjData, impulse: tuple[int, np.ndarray] | None, watch: _Watch
+) -> None:
+    """The impulse: force J / dt for this one step, at the hit body's centre of mass; the energy
+    after it is the reference, since from here on nothing adds energy but the servos."""
+    if impulse is not None:
+        body_id, force = impulse
+        point = data.xipos[body_id].copy()
+        mujoco.mj_applyFT(model, data, force, np.zeros(3), point, body_id, data.qfrc_applied)
+    mujoco.mj_step(model, data)
+    data.qfrc_applied[:] = 0.0
+    watch.check()
+    mujoco.mj_forward(model, data)
+    watch.arm_energy()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -713,14 +719,14 @@ def simulate_impact(
     ragdoll: Ragdoll,
     motion: Motion,
     impact: Impact,
+    *,
     window: float = REACTION_WINDOW,
-    servo_fraction: float = BC_SERVO_FRACTION,
-    stiffness: float = CD_STIFFNESS,
-    damping_time: float = CD_DAMPING_TIME,
+    gains: ServoGains = BC_GAINS,
+    workspace: Workspace | None = None,
 ) -> SimResult:
     """BC: the impact lands at B = impact.frame; forward dynamics for `window` seconds.
 
-    Weak servos (servo_fraction of CD's gains) pull toward the motion continuing after B. The
+    Weak servos (BC_GAINS: a fraction of CD's) pull toward the motion continuing after B. The
     result is sampled at the motion's frames ceil(B) .. C with C = round(B + window * fps); frames
     past the motion's end hold its last pose as the servo target. result.state is the state at C.
     """
@@ -736,24 +742,21 @@ def simulate_impact(
     c = int(round(b + window * motion.fps))
     reach = GROUND_SPAN * motion.fps
     table = _mocap_table(ragdoll, motion, b - reach - 1, max(b + reach + 1, c + 2))
-    start = state_from_mocap(ragdoll, motion, b, _table=table)
     # Servo targets: the motion continuing after B (its last pose held past its end), on a clock
     # whose frame 0 is the table's first frame.
     extra = max(0, c + 2 - (table.first + len(table.qpos) - 1))
-    targets = np.concatenate([table.qpos, np.repeat(table.qpos[-1:], extra, axis=0)])
-    force = np.asarray(impact.impulse) / TIMESTEP
-    result = _run(
-        ragdoll,
-        start,
-        targets,
-        motion.fps,
-        np.arange(int(np.ceil(b)), c + 1, dtype=float) - table.first,
-        b - table.first,
-        stiffness * servo_fraction,
-        damping_time,
-        (body.body_id, force),
+    plan = _Plan(
+        targets=np.concatenate([table.qpos, np.repeat(table.qpos[-1:], extra, axis=0)]),
+        fps=motion.fps,
+        sample_offsets=np.arange(int(np.ceil(b)), c + 1, dtype=float) - table.first,
+        start_offset=b - table.first,
+        gains=gains,
+        impulse=(body.body_id, np.asarray(impact.impulse) / TIMESTEP),
         clock=b / motion.fps,
     )
+    with _workspace(ragdoll, workspace) as ws:
+        start = _state_from_table(ws, motion, b, table)
+        result = _run(ws, start, plan)
     result.frames = result.frames + table.first
     return result
 
@@ -763,10 +766,11 @@ def track(
     start: SimState | Motion,
     target: Motion,
     duration: float,
+    *,
     target_start: int = 0,
     start_frame: float = 0.0,
-    stiffness: float = CD_STIFFNESS,
-    damping_time: float = CD_DAMPING_TIME,
+    gains: ServoGains = CD_GAINS,
+    workspace: Workspace | None = None,
 ) -> SimResult:
     """CD: PD tracking (Eq. 2) of `target` from frame `target_start` for `duration` seconds.
 
@@ -774,26 +778,27 @@ def track(
     Sampled at the target's frame times target_start .. target_start + round(duration * fps); the
     output's frames are numbered on the target's clock.
     """
-    if isinstance(start, Motion):
-        start = state_from_mocap(ragdoll, start, start_frame)
     if not (np.isfinite(duration) and duration > 0):
         raise SimulationError(f"tracking duration must be a positive number of seconds, got {duration!r}")
     if not 0 <= target_start < target.num_frames:
         raise SimulationError(f"target start frame {target_start} is outside the target's {target.num_frames} frames")
     n = int(round(duration * target.fps))
     frames = np.clip(np.arange(target_start, target_start + n + 3), 0, target.num_frames - 1)
-    targets = mocap_qpos(ragdoll, target, frames)
-    result = _run(
-        ragdoll,
-        start,
-        targets,
-        target.fps,
-        np.arange(0, n + 1, dtype=float),
-        0.0,
-        stiffness,
-        damping_time,
-        None,
+    plan = _Plan(
+        targets=mocap_qpos(ragdoll, target, frames),
+        fps=target.fps,
+        sample_offsets=np.arange(0, n + 1, dtype=float),
+        start_offset=0.0,
+        gains=gains,
+        impulse=None,
         clock=target_start / target.fps,
     )
+    with _workspace(ragdoll, workspace) as ws:
+        if isinstance(start, Motion):
+            _check_frame(start, start_frame)
+            reach = GROUND_SPAN * start.fps
+            table = _mocap_table(ragdoll, start, start_frame - reach - 1, start_frame + reach + 1)
+            start = _state_from_table(ws, start, start_frame, table)
+        result = _run(ws, start, plan)
     result.frames = result.frames + target_start
     return result

@@ -24,7 +24,7 @@ from reactive_anim.core.ragdoll import (
     part_of,
 )
 from reactive_anim.core.roles import assign_roles
-from reactive_anim.core.simulate import _held_pose, _place_bodies, _samples, _to_motion, mocap_qpos
+from reactive_anim.core.simulate import Workspace, _mocap_table, _place_bodies, _samples, _to_motion
 from reactive_anim.core.skeleton import Skeleton
 from tests.conftest import REPO, require_mocap
 
@@ -131,10 +131,11 @@ def test_mocap_to_joint_angles_and_back_reproduces_the_pose(sample_walk, dataset
     motion = sample_walk if dataset == "sample" else bvh.read_bvh(require_mocap(DATASETS[dataset]))
     ragdoll = build_ragdoll(motion.skeleton, reference=None if dataset == "sample" else motion)
     frame = min(40, motion.num_frames - 1)
-    qpos = mocap_qpos(ragdoll, motion, np.array([frame]))
-    held = _held_pose(ragdoll, motion, frame)
-    _place_bodies(ragdoll, held)
-    rots, pelvis, _, _ = _samples(ragdoll, qpos, np.zeros((1, ragdoll.model.nv)))
+    table = _mocap_table(ragdoll, motion, frame, frame)
+    held = table.held(frame)
+    workspace = Workspace(ragdoll)
+    _place_bodies(workspace, held)
+    rots, pelvis, _, _ = _samples(workspace, table.qpos, np.zeros((1, ragdoll.model.nv)))
     out = _to_motion(ragdoll, held, rots, pelvis, motion.fps)
     expected = motion.global_positions()[frame]
     got = out.global_positions()[0]
