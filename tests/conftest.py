@@ -1,25 +1,8 @@
-"""Shared test helpers: where the real mocap lives, and a skip when it is absent."""
+"""Makes the repository importable (reactive_anim, tests.support) without installing it."""
 
 from __future__ import annotations
 
 import sys
 from pathlib import Path
 
-import pytest
-
-REPO = Path(__file__).resolve().parents[1]
-MOCAP = REPO.parent / "shared" / "mocap"
-sys.path.insert(0, str(REPO))
-
-
-def mocap_files(pattern: str = "**/*.bvh") -> list[Path]:
-    """Real BVH files under ../shared/mocap (empty where ../shared is absent)."""
-    return sorted(MOCAP.glob(pattern)) if MOCAP.is_dir() else []
-
-
-def require_mocap(relative: str) -> Path:
-    """Path of one shared mocap file, or skip the test with the reason."""
-    path = MOCAP / relative
-    if not path.is_file():
-        pytest.skip(f"real mocap not available: {path} is absent (../shared/mocap is test-only data)")
-    return path
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))

@@ -19,7 +19,7 @@ Without a library.toml, sub-folders named by class slug are read instead (`step_
 so a library can be described without writing into the folder that holds the clips.
 
 Compilation: each clip is read (bvh.py), given its joint roles (roles.py), resampled to the
-library's rate and turned into Eq. 1's per-frame features (search.frame_features). The arrays are
+library's rate and turned into Eq. 1's per-frame features (window.frame_features). The arrays are
 contiguous float32, grouped by class in CLASS_SLUGS order, then by clip in manifest order, with
 per-frame clip and frame indices; that order is the search's tie-break. The result is cached as an
 .npz named by a SHA-256 of the feature version, the settings, the manifest and every clip file's
@@ -29,7 +29,7 @@ manifest, the file status of each clip and the cache.
 
 What we do differently from the paper, and why:
 - Mixed frame rates: every clip is resampled on compile to the library's rate (`fps`, default 30),
-  and queries are resampled to it too (search.query_from_motion). Eq. 1 sums per frame, so without
+  and queries are resampled to it too (window.query_from_motion). Eq. 1 sums per frame, so without
   this a 120 fps clip's window would cover a quarter of the time of a 30 fps one.
 - The window length is a library setting (`window`, default 8 frames = 0.27 s at 30 fps, a typical
   transition), because a clip shorter than the window cannot be searched and is reported on compile.
@@ -45,13 +45,13 @@ from pathlib import Path
 
 import numpy as np
 
-from . import bvh, roles as roles_mod, search
+from . import bvh
+from .classes import CLASS_SLUGS
 from .errors import BVHError, LibraryError, SkeletonError
-
-CLASS_SLUGS: tuple[str, ...] = (
-    "step_forward", "steps_forward", "step_back", "steps_back", "sway_balance",
-    "fall_forward_roll", "fall_forward_hands", "fall_backward_sit", "fall_backward_hands", "fall_side_knees",
-)  # fmt: skip
+from .roles import assign_roles
+from .search_index import SearchIndex, build_index
+from .skeleton import resample
+from .window import FrameFeatures, frame_features
 MANIFEST_NAME = "library.toml"
 # Bump when the features or the cache layout change, so old caches are never read.
 FEATURE_VERSION = 1
@@ -112,7 +112,7 @@ class Library:
 
     Arrays (N frames in all): pos_local (N, 15, 3), heading (N,), ground (N, 2), rot (N, 15, 4),
     float32; clip_index, frame_index (N,) int32. `class_ranges[slug]` = (start, stop) frame range.
-    `clip_frames[c]` = frames of clip c. See search.FrameFeatures for the meaning of each array.
+    `clip_frames[c]` = frames of clip c. See window.FrameFeatures for the meaning of each array.
     """
 
     def __init__(
@@ -145,7 +145,7 @@ class Library:
                 if where[-1] - where[0] + 1 != len(where):
                     raise LibraryError("library arrays are not grouped by class")
                 self.class_ranges[slug] = (int(where[0]), int(where[-1]) + 1)
-        self._index: search.SearchIndex | None = None
+        self._index: SearchIndex | None = None
         self.cache_path: Path | None = None
         self.loaded_from_cache = False
 
@@ -181,24 +181,29 @@ class Library:
                 return clip
         raise LibraryError(f"the library has no clip '{name}'")
 
-    def search_index(self) -> search.SearchIndex:
+    def search_index(self) -> SearchIndex:
         """The lower-bound index of the search, built on first use.
 
-        Its pivot distances (most of the build: about 9 s at 100k frames) are kept beside the
-        library's cache file and reused by the next load of the same library.
+        Its pivot distances (most of the build time) are kept beside the library's cache file and
+        reused by the next load of the same library.
         """
         if self._index is None:
             pivots_path = self.cache_path.with_suffix(".pivots.npz") if self.cache_path else None
             cached = _load_pivots(pivots_path) if pivots_path else None
-            self._index = search.build_index(self, cached_pivots=cached)
+            self._index = build_index(self, cached_pivots=cached)
             if pivots_path and (cached is None or not np.array_equal(cached[0], self._index.pivots)):
                 _save_arrays(pivots_path, pivots=self._index.pivots, pivot_dist=self._index.pivot_dist)
         return self._index
 
-    def features(self, start: int, stop: int) -> search.FrameFeatures:
+    @property
+    def frames(self) -> FrameFeatures:
+        """Every frame's features (float32 views of the library's arrays)."""
+        return FrameFeatures(self.pos_local, self.heading, self.ground, self.rot)
+
+    def features(self, start: int, stop: int) -> FrameFeatures:
         """Flat frames [start, stop) as FrameFeatures (float64 copies)."""
         sl = slice(start, stop)
-        return search.FrameFeatures(
+        return FrameFeatures(
             self.pos_local[sl].astype(float), self.heading[sl].astype(float),
             self.ground[sl].astype(float), self.rot[sl].astype(float),
         )  # fmt: skip
@@ -208,7 +213,7 @@ class Library:
         return int(np.searchsorted(self.clip_index, clip_index))
 
     @classmethod
-    def concatenate(cls, parts: list[tuple[ClipInfo, search.FrameFeatures]], settings: LibrarySettings) -> Library:
+    def concatenate(cls, parts: list[tuple[ClipInfo, FrameFeatures]], settings: LibrarySettings) -> Library:
         """A library from compiled clips; they are put in (class, given order) order."""
         order = sorted(range(len(parts)), key=lambda k: (CLASS_SLUGS.index(parts[k][0].reaction_class), k))
         parts = [parts[k] for k in order]
@@ -369,7 +374,7 @@ def cache_key(entries: list[ClipEntry], settings: LibrarySettings, memo: dict[st
     return h.hexdigest()
 
 
-def compile_clip(entry: ClipEntry, settings: LibrarySettings) -> tuple[ClipInfo, search.FrameFeatures]:
+def compile_clip(entry: ClipEntry, settings: LibrarySettings) -> tuple[ClipInfo, FrameFeatures]:
     """Read one clip and compute its features at the library's rate; errors name the clip."""
     try:
         motion = bvh.read_bvh(entry.path, unit=settings.unit, up=settings.up)
@@ -378,7 +383,7 @@ def compile_clip(entry: ClipEntry, settings: LibrarySettings) -> tuple[ClipInfo,
     except BVHError as exc:
         raise _entry_error(entry.name, str(exc)) from None
     try:
-        role_map = roles_mod.assign_roles(motion.skeleton, dict(entry.roles) or None)
+        role_map = assign_roles(motion.skeleton, dict(entry.roles) or None)
     except SkeletonError as exc:
         raise _entry_error(entry.name, f"its skeleton lacks joint roles the search needs: {exc}") from None
     start, stop = entry.frames or (0, motion.num_frames)
@@ -395,8 +400,8 @@ def compile_clip(entry: ClipEntry, settings: LibrarySettings) -> tuple[ClipInfo,
         )
     source_fps = float(motion.fps)
     if not np.isclose(source_fps, settings.fps):
-        motion = search.resample(motion, times)
-    features = search.frame_features(motion, role_map)
+        motion = resample(motion, times)
+    features = frame_features(motion, role_map)
     info = ClipInfo(
         entry.name, str(entry.path), entry.reaction_class, source_fps, start, features.num_frames, entry.next
     )

@@ -183,3 +183,25 @@ def forward_kinematics(
         pos[:, j] = pos[:, p] + quat.rotate(rot[:, p], offsets[:, j])
         rot[:, j] = quat.mul(rot[:, p], local_rot[:, j])
     return pos, rot
+
+
+def resample(motion: Motion, times: np.ndarray) -> Motion:
+    """The motion at the given times in seconds (linear root and joint offsets, slerped rotations).
+
+    Library clips and queries come at 30, 60, 120 fps; Eq. 1 sums per frame, so both are brought to
+    the library's rate first and a window covers the same time in every clip.
+    """
+    times = np.asarray(times, dtype=float)
+    last = motion.num_frames - 1
+    x = np.clip(times * motion.fps, 0.0, last)
+    lo = np.minimum(np.floor(x).astype(np.int64), max(last - 1, 0))
+    hi = np.minimum(lo + 1, last)
+    t = x - lo
+    root = motion.root_pos[lo] * (1 - t)[:, None] + motion.root_pos[hi] * t[:, None]
+    weight = np.broadcast_to(t[:, None], motion.local_rot[lo].shape[:2])
+    rot = quat.slerp(motion.local_rot[lo], motion.local_rot[hi], weight)
+    local_pos = None
+    if motion.local_pos is not None:
+        local_pos = motion.local_pos[lo] * (1 - t)[:, None, None] + motion.local_pos[hi] * t[:, None, None]
+    fps = 1.0 / (times[1] - times[0]) if len(times) > 1 else motion.fps
+    return Motion(motion.skeleton, fps, root, rot, local_pos)

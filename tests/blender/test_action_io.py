@@ -10,7 +10,7 @@ from reactive_anim.blender import action_io, bvh_import
 from reactive_anim.core import bvh, quat
 from reactive_anim.core.errors import SkeletonError
 from reactive_anim.core.skeleton import Motion
-from tests.conftest import require_mocap
+from tests.support.mocap import require_mocap
 
 # Three skeletons from three datasets: CMU cgspeed (31 joints, ZYX, only the root translated),
 # Bandai Namco (22 joints, ZXY, every joint translated), iClone CC rig (101 joints, twist/face bones).

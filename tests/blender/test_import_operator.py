@@ -8,7 +8,7 @@ import bpy
 import pytest
 
 import reactive_anim
-from tests.conftest import require_mocap
+from tests.support.mocap import require_mocap
 
 MALFORMED = Path(__file__).resolve().parents[1] / "data" / "malformed"
 

@@ -10,7 +10,7 @@ import pytest
 
 from reactive_anim.core import bvh, quat
 from reactive_anim.core.errors import BVHError
-from tests.conftest import MOCAP, mocap_files, require_mocap
+from tests.support.mocap import MOCAP, mocap_files, require_mocap
 
 ORDERS = ["".join(p) for p in itertools.permutations("XYZ")]
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from reactive_anim.core import bvh, quat
-from tests.conftest import require_mocap
+from tests.support.mocap import require_mocap
 
 ORDERS = ["".join(p) for p in itertools.permutations("XYZ")]
 TOL = 1e-5  # metres and radians

@@ -11,51 +11,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh, quat
+from reactive_anim.core import bvh, quat, search_index
 from reactive_anim.core.errors import LibraryError
-from reactive_anim.core.library import CLASS_SLUGS, LibrarySettings, load_library, read_chains, read_manifest
+from reactive_anim.core.classes import CLASS_SLUGS
+from reactive_anim.core.library import LibrarySettings, load_library, read_chains, read_manifest
+from reactive_anim.core.search import search
 from reactive_anim.core.skeleton import Motion, Skeleton
-
-REPO = Path(__file__).resolve().parents[2]
-WALK = REPO / "sample_clips" / "walk.bvh"
-
-
-def make_clip(path: Path, seed: int, frames: int = 120, fps: float = 60.0) -> Path:
-    """A variant of the sample walk: smooth seeded joint wobble, given length and frame rate."""
-    walk = bvh.read_bvh(WALK)
-    rng = np.random.default_rng(seed)
-    start = int(rng.integers(0, walk.num_frames - frames)) if frames < walk.num_frames else 0
-    motion = walk.slice(start, start + min(frames, walk.num_frames))
-    t = np.arange(motion.num_frames)[:, None]
-    joints = motion.skeleton.num_joints
-    amp = rng.uniform(0.0, 0.25, (1, joints))
-    phase = rng.uniform(0, 2 * np.pi, (1, joints))
-    axis = rng.normal(size=(joints, 3))
-    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
-    wobble = quat.from_axis_angle(np.broadcast_to(axis, (len(t), joints, 3)), amp * np.sin(0.07 * t + phase))
-    local_rot = quat.mul(motion.local_rot, wobble)
-    motion = Motion(motion.skeleton, fps, motion.root_pos, local_rot, motion.local_pos)
-    bvh.write_bvh(path, motion)
-    return path
-
-
-def write_toml(folder: Path, clips: list[dict]) -> Path:
-    lines = []
-    for clip in clips:
-        lines.append("[[clip]]")
-        for key, value in clip.items():
-            if isinstance(value, str):
-                lines.append(f'{key} = "{value}"')
-            elif isinstance(value, dict):
-                inner = ", ".join(f'{k} = "{v}"' for k, v in value.items())
-                lines.append(f"{key} = {{ {inner} }}")
-            else:
-                lines.append(f"{key} = {value}")
-        lines.append("")
-    path = folder / "library.toml"
-    path.write_text("\n".join(lines), encoding="utf-8")
-    return path
-
+from reactive_anim.core.window import Query
+from tests.support.library_clips import make_clip, write_toml
+from tests.support.mocap import REPO
 
 @pytest.fixture
 def small_library(tmp_path: Path) -> Path:
@@ -297,8 +261,6 @@ def test_the_sample_library_loads(tmp_path: Path) -> None:
 
 def test_a_reloaded_library_reuses_its_pivot_distances(small_library: Path, tmp_path: Path, monkeypatch) -> None:
     """The pivot distances, most of the index build, are cached beside the library and reused."""
-    from reactive_anim.core import search
-
     first = load_library(small_library, cache_dir=tmp_path / "cache")
     built = first.search_index()
     assert first.cache_path.with_suffix(".pivots.npz").is_file()
@@ -306,10 +268,10 @@ def test_a_reloaded_library_reuses_its_pivot_distances(small_library: Path, tmp_
     def no_recompute(*args, **kwargs):
         raise AssertionError("pivot distances recomputed although cached")
 
-    monkeypatch.setattr(search, "_pivot_distances", no_recompute)
+    monkeypatch.setattr(search_index, "_pivot_distances", no_recompute)
     again = load_library(small_library, cache_dir=tmp_path / "cache")
     reused = again.search_index()
     assert np.array_equal(reused.pivots, built.pivots)
     assert np.array_equal(reused.pivot_dist, built.pivot_dist)
-    query = search.Query(again.features(5, 5 + again.window))
-    assert search.find_best(again, query)[:2] == search.find_best(first, query)[:2]
+    query = Query(again.features(5, 5 + again.window))
+    assert search(again, query).cost == search(first, query).cost

@@ -26,7 +26,7 @@ from reactive_anim.core.ragdoll import (
 from reactive_anim.core.roles import assign_roles
 from reactive_anim.core.simulate import Workspace, _mocap_table, _place_bodies, _samples, _to_motion
 from reactive_anim.core.skeleton import Skeleton
-from tests.conftest import REPO, require_mocap
+from tests.support.mocap import REPO, require_mocap
 
 SAMPLE_WALK = REPO / "sample_clips" / "walk.bvh"
 DATASETS = {

@@ -25,9 +25,7 @@ from reactive_anim.core.roles import (
 )
 from reactive_anim.core.skeleton import Skeleton
 
-# `tests.conftest`, not `conftest`: in a full run pytest re-binds the module name `conftest` to
-# tests/blender/conftest.py, which does not have the mocap helpers.
-from tests.conftest import MOCAP, mocap_files, require_mocap
+from tests.support.mocap import MOCAP, mocap_files, require_mocap
 
 # ---------------------------------------------------------------------------------------------
 # Expected tables for the shared mocap (one per dataset; both iClone layouts share one)

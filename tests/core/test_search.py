@@ -1,6 +1,6 @@
 """The jump search (core/search.py, paper 2.4, Eq. 1, Table 2): exact, alignment-invariant, fast.
 
-- Fast equals the one-candidate-at-a-time reference (tests/core/search_reference.py) in match and
+- Fast equals the one-candidate-at-a-time reference (tests/support/search_reference.py) in match and
   cost on random queries (synthetic library) and real ones (shared mocap), ties included.
 - Turning and moving the query on the ground changes neither the match nor the cost.
 - Retrieval on the real mocap library: 200 perturbed windows found in their own clip.
@@ -16,22 +16,22 @@ import pytest
 from reactive_anim.core import bvh, quat
 from reactive_anim.core.errors import LibraryError
 from reactive_anim.core.library import load_library
-from reactive_anim.core.search import (
+from reactive_anim.core import search_index
+from reactive_anim.core.library import Library
+from reactive_anim.core.search import search, search_with_fallback
+from reactive_anim.core.skeleton import Motion
+from reactive_anim.core.window import (
     SEARCH_ROLES,
     TABLE2_POSITION_WEIGHTS,
     TABLE2_ROTATION_WEIGHTS,
-    FrameFeatures,
     Query,
-    find_best,
     joint_weights,
     query_from_motion,
-    search,
-    search_with_fallback,
+    window_costs,
 )
-from reactive_anim.core.skeleton import Motion
-from tests.conftest import MOCAP, mocap_files
-from tests.core.search_reference import reference_cost, reference_search
-from tests.core.test_library import make_clip, write_toml
+from tests.support.library_clips import make_clip, mocap_class, perturbed, write_toml
+from tests.support.mocap import MOCAP, mocap_files
+from tests.support.search_reference import reference_cost, reference_search
 
 
 @pytest.fixture(scope="module")
@@ -55,21 +55,17 @@ def random_query(library, rng: np.random.Generator, noise_m: float, noise_rad: f
     return perturbed(library.features(start, start + library.window), rng, noise_m, noise_rad)
 
 
-def perturbed(f: FrameFeatures, rng: np.random.Generator, noise_m: float, noise_rad: float) -> Query:
-    """Joint positions moved by noise_m (random directions), rotations by noise_rad, heading by
-    noise_rad, and the whole window turned by a random yaw and moved up to 50 m on the ground."""
-    shape = f.pos_local.shape[:-1]
-    direction = rng.normal(size=shape + (3,))
-    direction /= np.linalg.norm(direction, axis=-1, keepdims=True)
-    pos_local = f.pos_local + noise_m * direction
-    axis = rng.normal(size=shape + (3,))
-    axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
-    rot = quat.mul(f.rot, quat.from_axis_angle(axis, np.full(shape, noise_rad)))
-    yaw = rng.uniform(-np.pi, np.pi)
-    c, s = np.cos(yaw), np.sin(yaw)
-    ground = f.ground @ np.array([[c, s], [-s, c]]) + rng.uniform(-50, 50, 2)
-    heading = f.heading + yaw + rng.normal(0.0, noise_rad, f.heading.shape)
-    return Query(FrameFeatures(pos_local, heading, ground, rot))
+def find_best(
+    library: Library,
+    query: Query,
+    classes: list[str] | None = None,
+    position_weights: dict[str, float] = TABLE2_POSITION_WEIGHTS,
+    rotation_weights: dict[str, float] = TABLE2_ROTATION_WEIGHTS,
+) -> tuple[int, float, int]:
+    """The index's exact best (start, cost, evaluated) over the given classes (default all)."""
+    index = library.search_index()
+    slugs = list(index.class_tops) if classes is None else classes
+    return search_index.find_best(index, query, slugs, joint_weights(position_weights), joint_weights(rotation_weights))
 
 
 def assert_same(library, query: Query, classes=None) -> None:
@@ -104,26 +100,24 @@ def test_fast_equals_reference_on_random_queries(synthetic, noise) -> None:
 
 
 def assert_pivot_bounds_hold(library, queries) -> None:
-    """The triangle bounds (search._pivot_node_bounds, _pivot_candidate_filter) never exceed Eq. 1,
-    and the stored float32 pivot distances are within the index's margin of the exact cost."""
-    from reactive_anim.core import search as S
-
+    """The triangle bounds (search_index._pivot_node_bounds, _pivot_candidate_filter) never exceed
+    Eq. 1, and the stored float32 pivot distances are within the index's margin of the exact cost."""
     index = library.search_index()
     wp, wq = joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS)
     assert len(index.pivots) > 0
     for j, pivot in enumerate(index.pivots):
-        exact = S.window_costs(library, index.starts, Query(library.features(pivot, pivot + library.window)), wp, wq)
+        exact = window_costs(library.frames, index.starts, Query(library.features(pivot, pivot + library.window)), wp, wq)
         assert np.max(np.abs(exact - index.pivot_dist[:, j])) < index.pivot_margin / 10
     cands = np.arange(len(index.starts))
     block = np.searchsorted(index.firsts[0], cands, side="right") - 1
     for query in queries:
-        exact = S.window_costs(library, index.starts, query, wp, wq)
-        dq = S.window_costs(library, index.pivots, query, wp, wq).astype(np.float32)
-        node = S._pivot_node_bounds(index, 0, np.arange(len(index.firsts[0]) - 1), dq)
+        exact = window_costs(library.frames, index.starts, query, wp, wq)
+        dq = window_costs(library.frames, index.pivots, query, wp, wq).astype(np.float32)
+        node = search_index._pivot_node_bounds(index, 0, np.arange(len(index.firsts[0]) - 1), dq)
         assert np.all(node[block] <= exact)
         # Per candidate: every candidate the filter drops at threshold `cost` costs more than that.
         for cost in np.quantile(exact, [0.0, 0.01, 0.2, 0.5]):
-            kept = S._pivot_candidate_filter(index, cands, dq, float(cost))
+            kept = search_index._pivot_candidate_filter(index, cands, dq, float(cost))
             assert np.all(exact[np.setdiff1d(cands, kept)] > cost)
 
 
@@ -137,8 +131,6 @@ def test_pivot_bounds_are_lower_bounds(synthetic, tmp_path: Path) -> None:
 
 def test_other_weights_skip_the_pivots_and_stay_exact(synthetic) -> None:
     """The pivot distances hold for Table 2's weights only; other weights must still find the best."""
-    from reactive_anim.core import search as S
-
     pw = {**TABLE2_POSITION_WEIGHTS, "wrist": 1.5, "hip": 0.1}
     rw = {**TABLE2_ROTATION_WEIGHTS, "knee": 0.0, "neck": 2.0}
     index = synthetic.search_index()
@@ -146,7 +138,7 @@ def test_other_weights_skip_the_pivots_and_stay_exact(synthetic) -> None:
     for _ in range(3):
         query = random_query(synthetic, rng, 0.05, 0.1)
         start, cost, _ = find_best(synthetic, query, position_weights=pw, rotation_weights=rw)
-        costs = S.window_costs(synthetic, index.starts, query, joint_weights(pw), joint_weights(rw))
+        costs = window_costs(synthetic.frames, index.starts, query, joint_weights(pw), joint_weights(rw))
         assert start == index.starts[np.argmin(costs)]
         assert cost == pytest.approx(reference_cost(synthetic, start, query, pw, rw), rel=1e-5)
 
@@ -204,7 +196,7 @@ def test_turning_and_moving_the_query_changes_nothing(synthetic, tmp_path: Path)
             turned = rotated_motion(motion, yaw, np.asarray(shift))
             moved = query_from_motion(turned, start, synthetic.window, synthetic.fps)
             match = search(synthetic, moved)
-            assert (match.clip, match.frame) == (base.clip, base.frame)
+            assert (match.clip, match.jump_frame) == (base.clip, base.jump_frame)
             assert match.cost == pytest.approx(base.cost, rel=1e-5, abs=1e-5)
             # The returned placement moves with the query.
             assert np.angle(np.exp(1j * (match.yaw - base.yaw - yaw))) == pytest.approx(0.0, abs=1e-5)
@@ -216,7 +208,7 @@ def test_match_places_the_clip_on_the_query(synthetic) -> None:
     query = random_query(synthetic, rng, 0.0, 0.0)
     match = search(synthetic, query)
     assert match.cost == pytest.approx(0.0, abs=1e-4)
-    start = synthetic.clip_start(match.clip_index) + match.frame
+    start = synthetic.clip_start(match.clip_index) + match.jump_frame
     g = synthetic.ground[start].astype(float)
     c, s = np.cos(match.yaw), np.sin(match.yaw)
     placed = np.array([c * g[0] - s * g[1], s * g[0] + c * g[1]]) + match.offset
@@ -263,28 +255,6 @@ def test_search_errors(synthetic) -> None:
 
 # ---------------------------------------------------------------------------------------------
 # Real mocap
-
-
-def mocap_class(path: Path) -> str:
-    """Classes for the shared locomotion clips, by file name (what is measured is the search)."""
-    name = path.name
-    if name in ("90_18.bvh",):
-        return "fall_backward_sit"
-    if name in ("91_59.bvh",):
-        return "fall_side_knees"
-    if name in ("139_16.bvh",):
-        return "fall_forward_hands"
-    if "walk-back" in name:
-        return "steps_back"
-    if "turn" in name or "walk-left" in name or "walk-right" in name:
-        return "sway_balance"
-    if "walk" in name:
-        return "steps_forward"
-    if "run" in name or "dash" in name:
-        return "step_forward"
-    if path.parent.name == "cmu_iclone":
-        return "step_back"
-    return "fall_forward_roll"  # kick, punch, slash, respond
 
 
 def mocap_library(folder: Path, files: list[Path]):
@@ -337,10 +307,10 @@ def test_retrieval_on_real_mocap(real_library) -> None:
         start = lib.clip_start(clip) + frame
         query = perturbed(lib.features(start, start + lib.window), rng, 0.01, np.radians(1.0))
         match = search(lib, query)
-        if match.clip_index == clip and abs(match.frame - frame) <= 2:
+        if match.clip_index == clip and abs(match.jump_frame - frame) <= 2:
             hits += 1
         else:
-            misses.append((lib.clips[clip].name, frame, match.clip, match.frame))
+            misses.append((lib.clips[clip].name, frame, match.clip, match.jump_frame))
     rate = hits / 200
     print(f"\nretrieval on the real mocap library ({lib.num_frames} frames, {len(lib.clips)} clips): "
           f"{hits}/200 = {rate:.1%} within 2 frames of the right clip")  # fmt: skip

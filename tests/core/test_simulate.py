@@ -16,7 +16,7 @@ from reactive_anim.core.errors import SimulationError
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.ragdoll import build_ragdoll
 from reactive_anim.core.simulate import simulate_impact, state_from_mocap, track
-from tests.conftest import REPO, require_mocap
+from tests.support.mocap import REPO, require_mocap
 
 WALK = "bandai_namco/dataset-1/dataset-1_walk_normal_001.bvh"
 START = 40  # frame of the walk where the impact lands / tracking starts

@@ -14,7 +14,7 @@ from reactive_anim.core.errors import SimulationError
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.ragdoll import build_ragdoll
 from reactive_anim.core.simulate import SimResult, Workspace, simulate_impact, track
-from tests.conftest import REPO
+from tests.support.mocap import REPO
 
 IMPACTS = (Impact(30, "chest", (1.0, 0.0, 0.0), 120.0), Impact(52, "pelvis", (0.0, 1.0, 0.2), 200.0))
 

@@ -5,7 +5,7 @@ candidate's world joint positions, align them to the query (turn about Z by the 
 first frames' headings, then move the first frame's pelvis ground point onto the query's), and sum
 w_p |p_query - p_candidate| + w_theta * angle(q_query^-1 q_candidate) over window frames and joints.
 Keep a candidate only when strictly cheaper, so ties go to the first (lowest class, clip, frame).
-Used by the tests and tools/bench_search.py to check and time the fast search.
+Used by the tests and the search benchmark (tools/benchmarks) to check and time the fast search.
 """
 
 from __future__ import annotations
@@ -13,12 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from reactive_anim.core import quat
-from reactive_anim.core.search import (
-    TABLE2_POSITION_WEIGHTS,
-    TABLE2_ROTATION_WEIGHTS,
-    Query,
-    joint_weights,
-)
+from reactive_anim.core.library import Library
+from reactive_anim.core.window import TABLE2_POSITION_WEIGHTS, TABLE2_ROTATION_WEIGHTS, Query, joint_weights
 
 
 def _turn(points: np.ndarray, yaw: float) -> np.ndarray:
