@@ -119,19 +119,16 @@ class Library:
         self,
         clips: list[ClipInfo],
         settings: LibrarySettings,
-        pos_local: np.ndarray,
-        heading: np.ndarray,
-        ground: np.ndarray,
-        rot: np.ndarray,
+        frames: FrameFeatures,
         clip_index: np.ndarray,
         frame_index: np.ndarray,
-    ):
+    ) -> None:
         self.clips = clips
         self.settings = settings
-        self.pos_local = np.ascontiguousarray(pos_local, dtype=np.float32)
-        self.heading = np.ascontiguousarray(heading, dtype=np.float32)
-        self.ground = np.ascontiguousarray(ground, dtype=np.float32)
-        self.rot = np.ascontiguousarray(rot, dtype=np.float32)
+        self.pos_local = np.ascontiguousarray(frames.pos_local, dtype=np.float32)
+        self.heading = np.ascontiguousarray(frames.heading, dtype=np.float32)
+        self.ground = np.ascontiguousarray(frames.ground, dtype=np.float32)
+        self.rot = np.ascontiguousarray(frames.rot, dtype=np.float32)
         self.clip_index = np.ascontiguousarray(clip_index, dtype=np.int32)
         self.frame_index = np.ascontiguousarray(frame_index, dtype=np.int32)
         self.clip_frames = np.array([c.num_frames for c in clips], dtype=np.int64)
@@ -220,13 +217,16 @@ class Library:
         if not parts:
             raise LibraryError("the library has no clips")
         feats = [f for _, f in parts]
-        return cls(
-            [c for c, _ in parts],
-            settings,
+        frames = FrameFeatures(
             np.concatenate([f.pos_local for f in feats]),
             np.concatenate([f.heading for f in feats]),
             np.concatenate([f.ground for f in feats]),
             np.concatenate([f.rot for f in feats]),
+        )
+        return cls(
+            [c for c, _ in parts],
+            settings,
+            frames,
             np.concatenate([np.full(f.num_frames, k) for k, f in enumerate(feats)]),
             np.concatenate([np.arange(f.num_frames) for f in feats]),
         )
@@ -445,10 +445,9 @@ def _load(path: Path, key: str) -> Library | None:
             if meta.get("key") != key:
                 return None
             clips = [ClipInfo(**c) for c in meta["clips"]]
-            return Library(
-                clips, LibrarySettings(**meta["settings"]), data["pos_local"], data["heading"], data["ground"],
-                data["rot"], data["clip_index"], data["frame_index"],
-            )  # fmt: skip
+            frames = FrameFeatures(data["pos_local"], data["heading"], data["ground"], data["rot"])
+            settings = LibrarySettings(**meta["settings"])
+            return Library(clips, settings, frames, data["clip_index"], data["frame_index"])
     except (OSError, ValueError, KeyError, TypeError):
         return None  # a missing or damaged cache is compiled afresh
 

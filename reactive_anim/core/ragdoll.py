@@ -298,9 +298,45 @@ def _body_layout(skeleton: Skeleton, roles: dict[str, str]) -> tuple[list[Ragdol
     return bodies, body_of_joint
 
 
-def _segment_end(skeleton: Skeleton, bodies: list[RagdollBody], k: int, pos: np.ndarray, grot: np.ndarray,
-                 index: dict[str, int]) -> np.ndarray:
+@dataclass(frozen=True)
+class _Pose:
+    """World joint positions (J, 3) and rotations (J, 4) of one pose."""
+
+    pos: np.ndarray
+    grot: np.ndarray
+
+
+@dataclass(frozen=True)
+class _Reference:
+    """The reference pose (root position, local rotations, joint offsets), the stance foot pitch
+    (radians) and the character's height (m)."""
+
+    root: np.ndarray
+    local: np.ndarray
+    offsets: np.ndarray
+    foot_pitch: float
+    height: float
+
+
+@dataclass(frozen=True)
+class _Geometry:
+    """Where the neutral pose puts the bodies: joint positions (J, 3), each body's segment end and
+    capsule radius, the pelvis capsule's right-hip joint, and the ball-of-foot joint per side."""
+
+    pos: np.ndarray
+    ends: list[np.ndarray]
+    radii: list[float]
+    hip_r: int
+    balls: dict[str, int]
+
+
+# The character's (forward, left, up) unit vectors in a standing pose.
+CharacterFrame = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+def _segment_end(skeleton: Skeleton, bodies: list[RagdollBody], k: int, pose: _Pose, index: dict[str, int]) -> np.ndarray:
     """Where body k's capsule ends (world, in the given pose)."""
+    pos, grot = pose.pos, pose.grot
     body = bodies[k]
     children = [b for b in bodies if b.parent == k]
     part = part_of(body.name)
@@ -319,7 +355,7 @@ def _segment_end(skeleton: Skeleton, bodies: list[RagdollBody], k: int, pos: np.
     return pos[body.joint] + 0.08 * parent_dir
 
 
-def _character_frame(pos: np.ndarray, index: dict[str, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _character_frame(pos: np.ndarray, index: dict[str, int]) -> CharacterFrame:
     """forward, left, up of a standing pose (world Z up; left from the right hip to the left hip)."""
     up = np.array([0.0, 0.0, 1.0])
     left = pos[index["hip_l"]] - pos[index["hip_r"]]
@@ -361,17 +397,17 @@ def _stance_pitch(skeleton: Skeleton, index: dict[str, int], positions: np.ndarr
     return float(np.clip(np.median(np.concatenate(pitches)), 0.0, np.radians(60.0)))
 
 
-def _neutral_pose(skeleton: Skeleton, bodies: list[RagdollBody], index: dict[str, int], root_pos: np.ndarray,
-                  local_rot: np.ndarray, offsets: np.ndarray, foot_pitch: float) -> np.ndarray:
+def _neutral_pose(skeleton: Skeleton, bodies: list[RagdollBody], index: dict[str, int], ref: _Reference) -> np.ndarray:
     """Local rotations (J, 4) of the reference pose with every segment swung to stand straight.
 
     Each body, parents first, turns by the smallest rotation that points its segment at its neutral
     direction (spine and head up, limbs down, feet forward and a little down); its twist stays.
     """
-    local_rot = local_rot.copy()
+    local_rot = ref.local.copy()
+    foot_pitch = ref.foot_pitch
 
     def fk() -> tuple[np.ndarray, np.ndarray]:
-        p, r = forward_kinematics(skeleton, root_pos[None], local_rot[None], offsets[None])
+        p, r = forward_kinematics(skeleton, ref.root[None], local_rot[None], ref.offsets[None])
         return p[0], r[0]
 
     pos, grot = fk()
@@ -382,7 +418,7 @@ def _neutral_pose(skeleton: Skeleton, bodies: list[RagdollBody], index: dict[str
            "ankle": foot, "shoulder": down, "elbow": down, "wrist": down}  # fmt: skip
     for k, body in enumerate(bodies):
         pos, grot = fk()
-        end = _segment_end(skeleton, bodies, k, pos, grot, index)
+        end = _segment_end(skeleton, bodies, k, _Pose(pos, grot), index)
         if part_of(body.name) in ("pelvis", "waist"):
             end = pos[index["neck"]]  # upright torso: the spine from here to the neck points up
         if part_of(body.name) == "ankle":
@@ -399,9 +435,9 @@ def _neutral_pose(skeleton: Skeleton, bodies: list[RagdollBody], index: dict[str
     return local_rot
 
 
-def _joint_axes(part: str, side: str | None, bone: np.ndarray, forward: np.ndarray, left: np.ndarray,
-                up: np.ndarray) -> tuple[np.ndarray, float]:
+def _joint_axes(part: str, side: str | None, bone: np.ndarray, frame: CharacterFrame) -> tuple[np.ndarray, float]:
     """Rows e1 (flexion), e2 (twist), e3 (abduction) and the abduction sign for one joint."""
+    forward, left, up = frame
     toward = {"forward": forward, "back": -forward, "up": up}[FLEX_TOWARD[part]]
     e2 = _unit(bone)
     e1 = np.cross(e2, toward)
@@ -423,9 +459,10 @@ def _fmt(v) -> str:
     return " ".join(f"{float(x):.6g}" for x in np.atleast_1d(v))
 
 
-def _mjcf(ragdoll_bodies: list[RagdollBody], pos: np.ndarray, ends: list[np.ndarray], radii: list[float],
-          excludes: list[tuple[str, str]], pelvis_hip_r: int, ball_joints: dict[str, int]) -> str:
+def _mjcf(ragdoll_bodies: list[RagdollBody], geometry: _Geometry, excludes: list[tuple[str, str]]) -> str:
     """MJCF text of the ragdoll in its neutral pose (body frames = world axes)."""
+    pos, ends, radii = geometry.pos, geometry.ends, geometry.radii
+    pelvis_hip_r, ball_joints = geometry.hip_r, geometry.balls
     children: dict[int, list[int]] = {}
     for k, b in enumerate(ragdoll_bodies):
         children.setdefault(b.parent, []).append(k)
@@ -529,6 +566,7 @@ def _compile(text: str) -> mujoco.MjModel:
 def build_ragdoll(
     skeleton: Skeleton,
     roles: dict[str, str] | None = None,
+    *,
     profile: str | JointLimits = "anatomical",
     total_mass: float = TABLE1_TOTAL_MASS,
     reference: Motion | None = None,
@@ -559,19 +597,22 @@ def build_ragdoll(
     bodies, body_of_joint = _body_layout(skeleton, roles)
     scale = total_mass / TABLE1_TOTAL_MASS
     bodies = [replace(b, mass=b.mass * scale) for b in bodies]
-    ref_root, ref_local, ref_offsets, foot_pitch, height = _reference_pose(
-        skeleton, index, reference, reference_frame
+    ref = _reference_pose(skeleton, index, reference, reference_frame)
+    neutral_local = _neutral_pose(skeleton, bodies, index, ref)
+    npos, ngrot = forward_kinematics(skeleton, ref.root[None], neutral_local[None], ref.offsets[None])
+    neutral = _Pose(npos[0], ngrot[0])
+    ends = [_segment_end(skeleton, bodies, k, neutral, index) for k in range(len(bodies))]
+    bodies = _with_hinges(bodies, ends, neutral.pos, index, limits)
+    size = max(ref.height, 0.5) / 1.75
+    geometry = _Geometry(
+        pos=neutral.pos,
+        ends=ends,
+        radii=[RADII[part_of(b.name)] * size for b in bodies],
+        hip_r=index["hip_r"],
+        balls={side: _foot_point(skeleton, index, side) for side in ("l", "r")},
     )
-    neutral_local = _neutral_pose(skeleton, bodies, index, ref_root, ref_local, ref_offsets, foot_pitch)
-    npos, ngrot = forward_kinematics(skeleton, ref_root[None], neutral_local[None], ref_offsets[None])
-    npos, ngrot = npos[0], ngrot[0]
-    ends = [_segment_end(skeleton, bodies, k, npos, ngrot, index) for k in range(len(bodies))]
-    bodies = _with_hinges(bodies, ends, npos, index, limits)
-    size = max(height, 0.5) / 1.75
-    radii = [RADII[part_of(b.name)] * size for b in bodies]
-    balls = {side: _foot_point(skeleton, index, side) for side in ("l", "r")}
     start = time.perf_counter()
-    text, model = _compile_without_touching_pairs(bodies, npos, ends, radii, index["hip_r"], balls)
+    text, model = _compile_without_touching_pairs(bodies, geometry)
     compile_seconds = time.perf_counter() - start
     bodies = [_with_addresses(b, model) for b in bodies]
     return Ragdoll(
@@ -583,7 +624,7 @@ def build_ragdoll(
         limits=dict(limits),
         total_mass=float(total_mass),
         bodies=tuple(bodies),
-        neutral_global_rot=_frozen(ngrot),
+        neutral_global_rot=_frozen(neutral.grot),
         body_of_joint=_frozen(body_of_joint),
         compile_seconds=compile_seconds,
         **_index_arrays(skeleton, bodies, model),
@@ -607,7 +648,7 @@ def _resolve_profile(profile: str | JointLimits) -> tuple[str, JointLimits]:
 
 def _reference_pose(
     skeleton: Skeleton, index: dict[str, int], reference: Motion | None, reference_frame: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
+) -> _Reference:
     """Root position, local rotations and offsets of the reference pose, the stance foot pitch and
     the character's height (head over ankles); errors when the pose does not stand."""
     if reference is None:
@@ -635,21 +676,21 @@ def _reference_pose(
             "pose is not a standing pose, so pass a motion of it as `reference`"
         )
     stance = pos[None] if reference is None else reference.global_positions()
-    foot_pitch = _stance_pitch(skeleton, index, stance)
-    return ref_root, ref_local, ref_offsets, foot_pitch, float(height)
+    return _Reference(ref_root, ref_local, ref_offsets, _stance_pitch(skeleton, index, stance), float(height))
 
 
 def _with_hinges(
     bodies: list[RagdollBody], ends: list[np.ndarray], npos: np.ndarray, index: dict[str, int], limits: JointLimits
 ) -> list[RagdollBody]:
     """Bodies with their joint frames, the hinges the limits give them, and the mass each moves."""
-    forward, left, up = _character_frame(npos, index)
+    frame = _character_frame(npos, index)
+    up = frame[2]
     out = [bodies[0]]
     for k, b in enumerate(bodies[1:], 1):
         part = part_of(b.name)
         side = b.name[-1] if b.name[-2:] in ("_l", "_r") else None
         bone = up if part in ("waist", "back", "neck") else ends[k] - npos[b.joint]
-        axes, sign = _joint_axes(part, side, bone, forward, left, up)
+        axes, sign = _joint_axes(part, side, bone, frame)
         kinds = limits[part]
         hinges = tuple(slot for slot in range(3) if kinds[slot] is not None)
         ranges = np.array([kinds[slot] for slot in hinges], dtype=float).reshape(-1, 2)
@@ -663,12 +704,9 @@ def _with_hinges(
     return [replace(b, subtree_mass=m) for b, m in zip(out, subtree)]
 
 
-def _compile_without_touching_pairs(
-    bodies: list[RagdollBody], npos: np.ndarray, ends: list[np.ndarray], radii: list[float], hip_r: int,
-    balls: dict[str, int],
-) -> tuple[str, mujoco.MjModel]:
+def _compile_without_touching_pairs(bodies: list[RagdollBody], geometry: _Geometry) -> tuple[str, mujoco.MjModel]:
     """Compile once, find body pairs already touching in the neutral pose, exclude them, compile again."""
-    model = _compile(_mjcf(bodies, npos, ends, radii, [], hip_r, balls))
+    model = _compile(_mjcf(bodies, geometry, []))
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     excludes = set()
@@ -676,7 +714,7 @@ def _compile_without_touching_pairs(
         b1, b2 = int(model.geom_bodyid[c.geom1]), int(model.geom_bodyid[c.geom2])
         if model.body_mocapid[b1] < 0 and model.body_mocapid[b2] < 0 and b1 > 0 and b2 > 0:
             excludes.add(tuple(sorted((model.body(b1).name, model.body(b2).name))))
-    text = _mjcf(bodies, npos, ends, radii, sorted(excludes), hip_r, balls)
+    text = _mjcf(bodies, geometry, sorted(excludes))
     return text, _compile(text)
 
 

@@ -17,8 +17,8 @@ import numpy as np
 from .classes import CLASS_SLUGS
 from .errors import LibraryError
 from .library import Library
-from .search_index import find_best
-from .window import TABLE2_POSITION_WEIGHTS, TABLE2_ROTATION_WEIGHTS, Query, joint_weights
+from .search_index import Best, find_best
+from .window import TABLE2_POSITION_WEIGHTS, TABLE2_ROTATION_WEIGHTS, Query, joint_weights, yaw_rotate
 
 
 @dataclass(frozen=True)
@@ -77,8 +77,8 @@ def search(
     if len(tops) == 0:
         raise LibraryError(f"no clip in {scope!r} is long enough for a {library.window}-frame window")
     wp, wq = joint_weights(position_weights), joint_weights(rotation_weights)
-    start, cost, evaluated = find_best(index, query, slugs, wp, wq)
-    return _match(library, query, start, cost, threshold is None or cost <= threshold, scope, evaluated)
+    best = find_best(index, query, slugs, wp, wq)
+    return _match(library, query, best, threshold is None or best.cost <= threshold, scope)
 
 
 def search_with_fallback(
@@ -109,28 +109,25 @@ def search_with_fallback(
     return search(library, query, None, threshold, **weights)
 
 
-def _match(
-    library: Library, query: Query, start: int, cost: float, accepted: bool, scope: str, evaluated: int
-) -> Match:
+def _match(library: Library, query: Query, best: Best, accepted: bool, scope: str) -> Match:
+    start = best.start
     clip_index = int(library.clip_index[start])
     clip = library.clips[clip_index]
     frame = int(library.frame_index[start])
     # Placement: turn the clip's anchor heading onto the query's, then move its ground point there.
     yaw = float(query.features.heading[0]) - float(library.heading[start])
-    g = library.ground[start].astype(float)
-    c, s = np.cos(yaw), np.sin(yaw)
-    turned = np.array([c * g[0] - s * g[1], s * g[0] + c * g[1]])
-    offset = query.features.ground[0].astype(float) - turned
+    turned = yaw_rotate(yaw, np.append(library.ground[start].astype(float), 0.0))
+    offset = query.features.ground[0].astype(float) - turned[:2]
     return Match(
         clip=clip.name,
         clip_index=clip_index,
         reaction_class=clip.reaction_class,
         jump_frame=frame,
         source_frame=clip.source_frame(frame),
-        cost=cost,
+        cost=best.cost,
         accepted=accepted,
         yaw=float(np.angle(np.exp(1j * yaw))),
         offset=(float(offset[0]), float(offset[1])),
         scope=scope,
-        candidates_evaluated=evaluated,
+        candidates_evaluated=best.evaluated,
     )

@@ -86,6 +86,8 @@ class IndexedFrames(Protocol):
     clip_frames: np.ndarray
 
 
+# Aligned positions (n, 3, W, 15) and rotations (n, 4, W, 15) of n windows, components second.
+Windows = tuple[np.ndarray, np.ndarray]
 # Per node: aligned positions' low and high corners (n, 3, W, 15), rotations' centre and half-widths (n, 4, W, 15).
 Boxes = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
@@ -165,18 +167,21 @@ def _canonical_windows(frames: FrameFeatures, starts: np.ndarray, window: int) -
     return pos.transpose(0, 3, 1, 2), frames.rot[rows].transpose(0, 3, 1, 2)
 
 
-def _pivot_distances(pos: np.ndarray, rot: np.ndarray, ppos: np.ndarray, prot: np.ndarray, wp: np.ndarray, wq: np.ndarray) -> np.ndarray:
+def _pivot_distances(windows: Windows, pivots: Windows, wp: np.ndarray, wq: np.ndarray) -> np.ndarray:
     """_pivot_distances_chunk a cache-sized chunk of windows at a time."""
+    pos, rot = windows
     step = 512
-    return np.concatenate([_pivot_distances_chunk(pos[a : a + step], rot[a : a + step], ppos, prot, wp, wq)
+    return np.concatenate([_pivot_distances_chunk((pos[a : a + step], rot[a : a + step]), pivots, wp, wq)
                            for a in range(0, max(len(pos), 1), step)])  # fmt: skip
 
 
-def _pivot_distances_chunk(pos: np.ndarray, rot: np.ndarray, ppos: np.ndarray, prot: np.ndarray, wp: np.ndarray, wq: np.ndarray) -> np.ndarray:
+def _pivot_distances_chunk(windows: Windows, pivots: Windows, wp: np.ndarray, wq: np.ndarray) -> np.ndarray:
     """Eq. 1 between windows (pos (n, 3, W, 15), rot (n, 4, W, 15)) and pivots (K, 3 or 4, W, 15),
     (n, K) float32, within _pivot_error of the exact cost (see there). The angle is 4 asin(c / 2) of
     the chord c = |q_a -+ q_b| taken from the component differences: unlike acos of the dot product
     it keeps float32's precision at small angles."""
+    pos, rot = windows
+    ppos, prot = pivots
     n, k = len(pos), len(ppos)
     # Component planes (c, n, W * 15), contiguous, so every step is a plain elementwise pass.
     pos = np.ascontiguousarray(pos.reshape(n, 3, -1).transpose(1, 0, 2), dtype=np.float32)
@@ -239,7 +244,7 @@ def _choose_pivots(library: IndexedFrames, starts: np.ndarray, count: int, wp: n
     pos, rot = _canonical_windows(library.frames, starts[sample], library.window)
 
     def distances(i: int) -> np.ndarray:
-        return _pivot_distances(pos, rot, pos[i : i + 1], rot[i : i + 1], wp, wq)[:, 0]
+        return _pivot_distances((pos, rot), (pos[i : i + 1], rot[i : i + 1]), wp, wq)[:, 0]
 
     current = int(np.argmax(distances(0)))  # the window farthest from an arbitrary one
     chosen, nearest = [], np.full(len(sample), np.inf, np.float32)
@@ -293,7 +298,7 @@ def build_index(
         first, stop = block_first[block], block_first[block_stop]
         pos, rot = _canonical_windows(frames, starts[first:stop], window)
         if not reuse:
-            pivot_dist[first:stop] = _pivot_distances(pos, rot, pivot_pos, pivot_rot, wp, wq)
+            pivot_dist[first:stop] = _pivot_distances((pos, rot), (pivot_pos, pivot_rot), wp, wq)
         cut = block_first[block:block_stop] - first
         pos_lo[block:block_stop] = np.minimum.reduceat(pos, cut, axis=0)
         pos_hi[block:block_stop] = np.maximum.reduceat(pos, cut, axis=0)
@@ -551,11 +556,18 @@ def uses_pivots(wp: np.ndarray, wq: np.ndarray) -> bool:
     )
 
 
-def find_best(
-    index: SearchIndex, query: Query, classes: list[str], wp: np.ndarray, wq: np.ndarray
-) -> tuple[int, float, int]:
-    """Exact best window of the given classes for the query: its flat start frame, its Eq. 1 cost,
-    and how many float64 costs were computed (the rest were pruned). wp, wq: per-joint weights."""
+@dataclass(frozen=True)
+class Best:
+    """The exact best window: its flat start frame, its Eq. 1 cost, and how many float64 costs were
+    computed on the way (the other candidates were pruned)."""
+
+    start: int
+    cost: float
+    evaluated: int
+
+
+def find_best(index: SearchIndex, query: Query, classes: list[str], wp: np.ndarray, wq: np.ndarray) -> Best:
+    """Exact best window of the given classes for the query. wp, wq: per-joint weights (window.joint_weights)."""
     return _Traversal(index, query, wp, wq).run(index.tops(classes))
 
 
@@ -573,11 +585,11 @@ class _Traversal:
             self.pivot_query = _pivot_query_distances(index, query, wp, wq).astype(np.float32)
         self.best_cost, self.best_start, self.evaluated = np.inf, -1, 0
 
-    def run(self, tops: np.ndarray) -> tuple[int, float, int]:
+    def run(self, tops: np.ndarray) -> Best:
         if self.pivot_query is not None:
             self.evaluate(_seed_candidates(self.index, tops, self.pivot_query))
         self.visit(len(self.index.boxes) - 1, tops)
-        return self.best_start, float(self.best_cost), self.evaluated
+        return Best(self.best_start, float(self.best_cost), self.evaluated)
 
     def evaluate(self, cands: np.ndarray) -> None:
         """Exact float64 costs of the candidates whose near-exact bound can still beat the best."""

@@ -65,7 +65,8 @@ def find_best(
     """The index's exact best (start, cost, evaluated) over the given classes (default all)."""
     index = library.search_index()
     slugs = list(index.class_tops) if classes is None else classes
-    return search_index.find_best(index, query, slugs, joint_weights(position_weights), joint_weights(rotation_weights))
+    best = search_index.find_best(index, query, slugs, joint_weights(position_weights), joint_weights(rotation_weights))
+    return best.start, best.cost, best.evaluated
 
 
 def assert_same(library, query: Query, classes=None) -> None:
