@@ -35,6 +35,15 @@ class SimulationError(ReactiveAnimError):
     """A physics simulation that became unstable or was given unusable input."""
 
 
+class ImpactError(ReactiveAnimError):
+    """An impact that cannot be applied: outside the motion, on a bone the skeleton lacks, without
+    a direction or with a bad strength; the message names the impact."""
+
+
+class Cancelled(ReactiveAnimError):
+    """A bake stopped because the caller asked it to (no result is returned)."""
+
+
 class LibraryError(ReactiveAnimError):
     """A reaction-clip library that cannot be built or searched."""
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import SimulationError
+from .errors import ImpactError
 
 
 @dataclass(frozen=True)
@@ -35,24 +35,24 @@ class Impact:
     def __post_init__(self) -> None:
         frame = float(self.frame)
         if not math.isfinite(frame) or frame < 0:
-            raise SimulationError(f"impact on '{self.bone}': frame must be a finite number >= 0, got {self.frame!r}")
+            raise ImpactError(f"impact on '{self.bone}': frame must be a finite number >= 0, got {self.frame!r}")
         if not isinstance(self.bone, str) or not self.bone:
-            raise SimulationError(f"impact at frame {frame:g}: bone must be a joint name, got {self.bone!r}")
+            raise ImpactError(f"impact at frame {frame:g}: bone must be a joint name, got {self.bone!r}")
         direction = np.asarray(self.direction, dtype=float).reshape(-1)
         if direction.shape != (3,) or not np.all(np.isfinite(direction)):
-            raise SimulationError(
+            raise ImpactError(
                 f"impact on '{self.bone}': direction must be three finite numbers, got {self.direction!r}"
             )
         length = float(np.linalg.norm(direction))
         if length < 1e-9:
-            raise SimulationError(f"impact on '{self.bone}': direction {self.direction!r} has no length")
+            raise ImpactError(f"impact on '{self.bone}': direction {self.direction!r} has no length")
         strength = float(self.strength)
         if not math.isfinite(strength) or strength < 0:
-            raise SimulationError(
+            raise ImpactError(
                 f"impact on '{self.bone}': strength must be a finite impulse >= 0 N·s, got {self.strength!r}"
             )
         if self.reaction is not None and (not isinstance(self.reaction, str) or not self.reaction):
-            raise SimulationError(
+            raise ImpactError(
                 f"impact on '{self.bone}': reaction must be a class slug or None, got {self.reaction!r}"
             )
         object.__setattr__(self, "frame", frame)

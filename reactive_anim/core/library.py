@@ -50,7 +50,7 @@ from .classes import CLASS_SLUGS
 from .errors import BVHError, LibraryError, SkeletonError
 from .roles import assign_roles
 from .search_index import SearchIndex, build_index
-from .skeleton import resample
+from .skeleton import Motion, resample
 from .window import FrameFeatures, frame_features
 MANIFEST_NAME = "library.toml"
 # Bump when the features or the cache layout change, so old caches are never read.
@@ -145,6 +145,8 @@ class Library:
         self._index: SearchIndex | None = None
         self.cache_path: Path | None = None
         self.loaded_from_cache = False
+        self.chains: dict[str, Path] = {}  # clips played only after another ([[chain]]): name -> file
+        self._motions: dict[tuple[str, float], Motion] = {}
 
     @property
     def fps(self) -> float:
@@ -204,6 +206,33 @@ class Library:
             self.pos_local[sl].astype(float), self.heading[sl].astype(float),
             self.ground[sl].astype(float), self.rot[sl].astype(float),
         )  # fmt: skip
+
+    def clip_motion(self, name: str, fps: float) -> Motion:
+        """A clip's (or a chained clip's) motion at `fps`, over the frames the library uses, from
+        its BVH file; kept, so a bake reads each clip once. Errors name the clip."""
+        key = (name, float(fps))
+        if key not in self._motions:
+            self._motions[key] = self._read_motion(name, fps)
+        return self._motions[key]
+
+    def _read_motion(self, name: str, fps: float) -> Motion:
+        settings = self.settings
+        info = next((c for c in self.clips if c.name == name), None)
+        path = Path(info.path) if info is not None else self.chains.get(name)
+        if path is None:
+            raise LibraryError(f"the library has no clip '{name}' (neither a [[clip]] nor a [[chain]])")
+        try:
+            motion = bvh.read_bvh(path, unit=settings.unit, up=settings.up)
+        except (BVHError, OSError) as exc:
+            raise _entry_error(name, f"cannot be read again for the bake: {exc}") from None
+        if info is not None:
+            duration = (info.num_frames - 1) / info.library_fps
+            stop = min(motion.num_frames, info.source_start + int(np.floor(duration * motion.fps + 1e-6)) + 1)
+            motion = motion.slice(info.source_start, stop)
+        if np.isclose(motion.fps, fps):
+            return motion
+        duration = (motion.num_frames - 1) / motion.fps
+        return resample(motion, np.arange(int(np.floor(duration * fps + 1e-9)) + 1) / fps)
 
     def clip_start(self, clip_index: int) -> int:
         """Flat index of the clip's first frame."""
@@ -492,4 +521,5 @@ def load_library(
         library = compile_library(entries, settings)
         _save(library, path, key)
     library.cache_path = path
+    library.chains = read_chains(source)
     return library

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from reactive_anim.core import bvh, quat
-from reactive_anim.core.errors import SimulationError, SkeletonError
+from reactive_anim.core.errors import ImpactError, SimulationError, SkeletonError
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.ragdoll import (
     ANATOMICAL_LIMITS,
@@ -172,7 +172,7 @@ def test_impact_normalises_its_direction():
 )
 def test_impact_rejects_bad_values(kwargs, message):
     args = {"frame": 10, "bone": "chest", "direction": (1, 0, 0), "strength": 50.0, **kwargs}
-    with pytest.raises(SimulationError, match=message):
+    with pytest.raises(ImpactError, match=message):
         Impact(**args)
 
 

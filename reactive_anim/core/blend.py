@@ -1,0 +1,64 @@
+"""Blends between motions: theta_blend for the CD servo targets, and the CF fade (paper 2.5, step 6).
+
+The paper drives the transition (CD) with PD servos toward theta_blend(t), "the desired trajectory
+blended from the two mocap sequences" (the motion before the impact and Sequence-2), and then fades
+the simulated CD into Sequence-2's EF: root position linearly, joint rotations by quaternion slerp,
+so that at F the pose is Sequence-2's. Both use `blend` with `fade_weights`.
+
+What we choose where the paper is silent, and why:
+- The fade weight goes from 0 at the first frame to 1 at the last along the quintic smootherstep
+  6s^5 - 15s^4 + 10s^3: its first and second derivatives are zero at both ends, so at C the output
+  leaves CD with CD's own velocity and at F it joins the clip with the clip's velocity (a linear
+  fade would add a velocity step of (clip - CD) / duration at both ends).
+- Joint offsets (animated bone lengths, as in the Bandai Namco files) are lerped like the root.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import quat
+from .errors import SkeletonError
+from .skeleton import Motion
+from .window import yaw_rotate
+
+
+def fade_weights(frames: int) -> np.ndarray:
+    """(frames,) weights from 0 (first frame) to 1 (last) with zero slope and curvature at both ends."""
+    if frames < 2:
+        return np.ones(max(frames, 0))
+    s = np.linspace(0.0, 1.0, frames)
+    return s * s * s * (s * (6.0 * s - 15.0) + 10.0)
+
+
+def blend(a: Motion, b: Motion, weights: np.ndarray) -> Motion:
+    """Per frame, `a` faded into `b` by weights (T,) in [0, 1]: root and joint offsets lerped, joint
+    rotations slerped (shortest arc). Weight 0 gives `a`'s frame exactly, 1 gives `b`'s."""
+    if a.skeleton.names != b.skeleton.names:
+        raise SkeletonError("can only blend motions of the same skeleton")
+    if not (a.num_frames == b.num_frames == len(weights)):
+        raise SkeletonError(
+            f"blend needs equal lengths: {a.num_frames} and {b.num_frames} frames, {len(weights)} weights"
+        )
+    w = np.asarray(weights, dtype=float)
+    root = a.root_pos + (b.root_pos - a.root_pos) * w[:, None]
+    rot = quat.slerp(a.local_rot, b.local_rot, np.broadcast_to(w[:, None], a.local_rot.shape[:2]))
+    rot[w == 0] = a.local_rot[w == 0]
+    rot[w == 1] = b.local_rot[w == 1]
+    root[w == 1] = b.root_pos[w == 1]
+    local_pos = None
+    if a.local_pos is not None or b.local_pos is not None:
+        pa, pb = a.joint_offsets(), b.joint_offsets()
+        local_pos = pa + (pb - pa) * w[:, None, None]
+    return Motion(a.skeleton, a.fps, root, rot, local_pos)
+
+
+def place(motion: Motion, yaw: float, offset: tuple[float, float]) -> Motion:
+    """The motion turned by `yaw` about the world Z axis through the origin, then moved on the
+    ground by `offset` (x, y): how a matched clip is put where the character is (search.Match)."""
+    turn = quat.from_axis_angle(np.array([0.0, 0.0, 1.0]), np.float64(yaw))
+    root = yaw_rotate(yaw, motion.root_pos)
+    root[:, :2] += np.asarray(offset, dtype=float)
+    rot = motion.local_rot.copy()
+    rot[:, 0] = quat.mul(np.broadcast_to(turn, rot[:, 0].shape), rot[:, 0])
+    return Motion(motion.skeleton, motion.fps, root, rot, None if motion.local_pos is None else motion.local_pos.copy())

@@ -1,0 +1,389 @@
+"""One impact end to end, and a timeline of impacts (paper section 2, steps 2-6, Fig. 1, Fig. 4).
+
+For an impact at B on a playing motion:
+  BC  the ragdoll takes the impulse and runs forward dynamics for a reaction time (simulate.py);
+  C   the classifier names the likely reaction classes from the state at C (features.py);
+      the jump search (search.py) finds, within the most probable class the library has, the clip
+      window closest to the simulated window ending at C; its last frame is the clip's E, matched to C;
+  CD  PD servos track theta_blend from C: the motion the character was playing, faded into the clip
+      from E (blend.py), so the body moves toward the clip while physics keeps the hit's momentum;
+  CF  the simulated CD is faded into the clip's E..F (root lerp, joint slerp); at F the pose is the
+      clip's exactly, and the clip plays on from there, placed where the character is.
+What we add beyond the paper, and why:
+- A clip whose library entry names a `next` clip (a get-up after a fall, paper Fig. 3) is followed
+  by it, placed where the fall ends and faded in over `chain_blend`.
+- Resume: when the reaction ends standing, the original motion resumes. Its best re-entry window
+  (Eq. 1, after B) is aligned with the reaction's last frames and faded in over that window, so a
+  walker who stumbles walks on. A reaction that ends lying down holds its last pose.
+- Several impacts: each starts from the motion as already reacted at its frame (Fig. 4), so a hit
+  that lands during an earlier reaction reacts from that reaction.
+- Impact frames are on the output's clock (the baked action's timeline); the output keeps the
+  original's frames before the first impact bit for bit.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Protocol
+
+import numpy as np
+
+from .blend import blend, fade_weights, place
+from .classes import CLASS_SLUGS
+from .errors import Cancelled, ImpactError, LibraryError, SkeletonError
+from .impact import Impact
+from .library import Library
+from .ragdoll import Ragdoll, build_ragdoll
+from .roles import assign_roles
+from .search import Match, search, search_with_fallback
+from .simulate import SimResult, Workspace, simulate_impact, track
+from .skeleton import Motion
+from .window import (
+    TABLE2_POSITION_WEIGHTS,
+    TABLE2_ROTATION_WEIGHTS,
+    Query,
+    frame_features,
+    joint_weights,
+    query_from_motion,
+    window_costs,
+    yaw_rotate,
+)
+
+
+@dataclass(frozen=True)
+class ReactionSettings:
+    """How a reaction is made; defaults in brackets.
+
+    reaction_window: BC, seconds of free physics after the hit [0.25, a human reaction time].
+    transition: C to F, seconds of PD tracking faded into the clip [0.33].
+    profile: the ragdoll's joint profile, "anatomical" or "paper" (ragdoll.py) ["anatomical"].
+    search_threshold: Eq. 1 cost above which a class's best window is refused and the next
+      probable class is searched, then the whole library [25.0; sample-library matches of pushed
+      walks cost about 5-30].
+    min_probability: classes less probable than this are not searched by name (the whole-library
+      fallback still covers them) [0.1].
+    resume: after a reaction that ends standing, resume the original motion [True].
+    chain_blend: seconds over which a chained get-up fades in where the fall ends [0.2].
+    """
+
+    reaction_window: float = 0.25
+    transition: float = 0.33
+    profile: str = "anatomical"
+    search_threshold: float = 25.0
+    min_probability: float = 0.1
+    resume: bool = True
+    chain_blend: float = 0.2
+
+
+class ReactionClassifier(Protocol):
+    """What the pipeline needs of a classifier (classifier.py): class probabilities of a simulated
+    impact, in CLASS_SLUGS order."""
+
+    def classify(self, before: Motion, bc: SimResult, ragdoll: Ragdoll) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class Reaction:
+    """The result for one impact. Frames are on the output's clock.
+
+    frame_b, frame_c, frame_f: the impact, the end of BC (classify and search), the end of the
+      transition (pose = the clip's); end_frame: the last frame of the reaction (clip, get-up).
+    probabilities: class slug -> probability (empty without a classifier); predicted: the most
+      probable class, or the override. scope: what the search covered ("all", a class, ...).
+    reaction_class, clip, jump_frame, cost, accepted: the match (jump_frame: the window's first
+      frame in the clip, library rate); placement: (yaw, (x, y)) that put the clip on the character.
+    chained: the get-up clip that followed, if any; resumed_at: the original motion's frame at
+      which it resumed (None: held the last pose, or resume off).
+    timings: seconds per step (bc, classify, search, cd, blend, splice, total).
+    """
+
+    impact: Impact
+    frame_b: float
+    frame_c: int
+    frame_f: int
+    end_frame: int
+    probabilities: dict[str, float]
+    predicted: str | None
+    scope: str
+    reaction_class: str
+    clip: str
+    jump_frame: int
+    cost: float
+    accepted: bool
+    placement: tuple[float, tuple[float, float]]
+    chained: str | None
+    resumed_at: int | None
+    timings: dict[str, float] = field(default_factory=dict)
+    motion: Motion | None = field(default=None, repr=False)
+
+
+@dataclass(frozen=True)
+class Baked:
+    """The whole reacted motion and one Reaction per impact, in time order."""
+
+    motion: Motion
+    reactions: list[Reaction]
+
+
+class _Clock:
+    """Seconds per named step."""
+
+    def __init__(self) -> None:
+        self.times: dict[str, float] = {}
+        self._start = self._last = time.perf_counter()
+
+    def lap(self, name: str) -> None:
+        now = time.perf_counter()
+        self.times[name] = self.times.get(name, 0.0) + now - self._last
+        self._last = now
+
+    def total(self) -> dict[str, float]:
+        return {**self.times, "total": time.perf_counter() - self._start}
+
+
+# ---------------------------------------------------------------------------------------------
+# Public API
+
+
+def react(
+    motion: Motion,
+    impact: Impact,
+    library: Library,
+    classifier: ReactionClassifier | None = None,
+    settings: ReactionSettings | None = None,
+    *,
+    source: Motion | None = None,
+    ragdoll: Ragdoll | None = None,
+    workspace: Workspace | None = None,
+) -> Reaction:
+    """Steps 2-6 for one impact on `motion`; Reaction.motion is the whole motion with the reaction.
+
+    source: the motion to resume after the reaction (default `motion`; a bake passes the original).
+    ragdoll, workspace: reuse across impacts (default: built for the motion's skeleton).
+    """
+    settings = settings or ReactionSettings()
+    clock = _Clock()
+    _check_impact(motion, impact)
+    ragdoll = ragdoll or character_ragdoll(motion, settings.profile)
+    workspace = workspace or Workspace(ragdoll)
+    bc = simulate_impact(ragdoll, motion, impact, window=settings.reaction_window, workspace=workspace)
+    frame_c = int(bc.frames[-1])
+    before = _join(motion.slice(0, int(bc.frames[0])), bc.motion)
+    clock.lap("bc")
+    probabilities = _probabilities(classifier, before, bc, ragdoll)
+    clock.lap("classify")
+    query = _query_ending_at(before, frame_c, library, impact)
+    match = _search(library, query, impact, probabilities, settings)
+    clock.lap("search")
+    clip = place(library.clip_motion(match.clip, motion.fps), match.yaw, match.offset)
+    frame_e = int(round((match.jump_frame + library.window - 1) / library.fps * motion.fps))
+    steps = max(1, int(round(settings.transition * motion.fps)))
+    clip_ef = _frames(clip, frame_e, steps + 1)  # E..F; a clip that ends sooner holds its last pose
+    target = blend(_frames(source or motion, frame_c, steps + 1), clip_ef, fade_weights(steps + 1))
+    cd = track(ragdoll, bc.state, target, steps / motion.fps, workspace=workspace)
+    clock.lap("cd")
+    transition = blend(cd.motion, clip_ef, fade_weights(steps + 1))
+    out = _join(before.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, clip.num_frames))
+    clock.lap("blend")
+    out, chained = _chain(out, library, match, motion.fps, settings)
+    end_frame = out.num_frames - 1
+    out, resumed_at = _resume_or_hold(out, source or motion, impact, library, match, chained, settings)
+    clock.lap("splice")
+    return Reaction(
+        impact=impact,
+        frame_b=impact.frame,
+        frame_c=frame_c,
+        frame_f=frame_c + steps,
+        end_frame=end_frame,
+        probabilities=dict(zip(CLASS_SLUGS, map(float, probabilities))) if probabilities is not None else {},
+        predicted=impact.reaction or (None if probabilities is None else CLASS_SLUGS[int(np.argmax(probabilities))]),
+        scope=match.scope,
+        reaction_class=match.reaction_class,
+        clip=match.clip,
+        jump_frame=match.jump_frame,
+        cost=match.cost,
+        accepted=match.accepted,
+        placement=(match.yaw, match.offset),
+        chained=chained,
+        resumed_at=resumed_at,
+        timings=clock.total(),
+        motion=out,
+    )
+
+
+def bake_reactions(
+    motion: Motion,
+    impacts: list[Impact],
+    library: Library,
+    classifier: ReactionClassifier | None = None,
+    settings: ReactionSettings | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> Baked:
+    """Every impact in time order, each on the motion as reacted so far (paper Fig. 4).
+
+    progress(i, n, step) is called before each impact (step "react") and at the end ("done");
+    cancel() returning True stops the bake with Cancelled, returning nothing half-made.
+    """
+    settings = settings or ReactionSettings()
+    if not impacts:
+        return Baked(motion, [])
+    ordered = sorted(impacts, key=lambda i: i.frame)
+    for impact in ordered:
+        _check_impact(motion, impact)
+    ragdoll = character_ragdoll(motion, settings.profile)
+    workspace = Workspace(ragdoll)
+    current, reactions = motion, []
+    for k, impact in enumerate(ordered):
+        if cancel is not None and cancel():
+            raise Cancelled(f"bake cancelled before impact {k + 1} of {len(ordered)}")
+        if progress is not None:
+            progress(k, len(ordered), "react")
+        _check_impact(current, impact)
+        reaction = react(current, impact, library, classifier, settings, source=motion, ragdoll=ragdoll,
+                         workspace=workspace)  # fmt: skip
+        current = reaction.motion if reaction.motion is not None else current
+        reactions.append(replace(reaction, motion=None))
+    if progress is not None:
+        progress(len(ordered), len(ordered), "done")
+    return Baked(current, reactions)
+
+
+def character_ragdoll(motion: Motion, profile: str = "anatomical") -> Ragdoll:
+    """The ragdoll of the motion's skeleton: neutral pose from the rest pose when it stands, else
+    from the motion's first frame."""
+    try:
+        return build_ragdoll(motion.skeleton, profile=profile)
+    except SkeletonError:
+        return build_ragdoll(motion.skeleton, profile=profile, reference=motion)
+
+
+# ---------------------------------------------------------------------------------------------
+# Steps
+
+
+def _check_impact(motion: Motion, impact: Impact) -> None:
+    where = f"impact at frame {impact.frame:g} on '{impact.bone}'"
+    if not 0 <= impact.frame <= motion.num_frames - 1:
+        raise ImpactError(f"{where} is outside the motion's frames 0..{motion.num_frames - 1}")
+    if impact.bone not in motion.skeleton.names:
+        raise ImpactError(f"{where}: the skeleton has no bone '{impact.bone}'")
+    if impact.reaction is not None and impact.reaction not in CLASS_SLUGS:
+        raise ImpactError(f"{where}: unknown reaction '{impact.reaction}'; classes are: {', '.join(CLASS_SLUGS)}")
+
+
+def _probabilities(
+    classifier: ReactionClassifier | None, before: Motion, bc: SimResult, ragdoll: Ragdoll
+) -> np.ndarray | None:
+    return None if classifier is None else np.asarray(classifier.classify(before, bc, ragdoll), dtype=float)
+
+
+def _query_ending_at(before: Motion, frame_c: int, library: Library, impact: Impact) -> Query:
+    """The library-rate window whose last frame is C, from the motion with BC in it."""
+    start = frame_c - (library.window - 1) * before.fps / library.fps
+    if start < 0:
+        raise ImpactError(
+            f"impact at frame {impact.frame:g} on '{impact.bone}' is too early: the search needs "
+            f"{(library.window - 1) / library.fps:.2f} s of motion before the end of the reaction window"
+        )
+    return query_from_motion(before, start, library.window, library.fps)
+
+
+def _search(
+    library: Library, query: Query, impact: Impact, probabilities: np.ndarray | None, settings: ReactionSettings
+) -> Match:
+    """The override's class alone; else the probable classes in order, then the whole library."""
+    if impact.reaction is not None:
+        return search(library, query, [impact.reaction], settings.search_threshold)
+    if probabilities is None:
+        return search(library, query, None, settings.search_threshold)
+    order = [CLASS_SLUGS[k] for k in np.argsort(-probabilities, kind="stable")]
+    likely = [slug for slug, p in zip(order, np.sort(probabilities)[::-1]) if p >= settings.min_probability]
+    if not any(slug in library.class_ranges for slug in likely):
+        likely = [slug for slug in order if slug in library.class_ranges][:1]
+    if not likely:
+        raise LibraryError("the library has no usable class for this reaction")
+    return search_with_fallback(library, query, likely, settings.search_threshold)
+
+
+def _chain(
+    out: Motion, library: Library, match: Match, fps: float, settings: ReactionSettings
+) -> tuple[Motion, str | None]:
+    """The clip's `next` (a get-up) placed where the reaction ends and faded in."""
+    name = library.clips[match.clip_index].next
+    if name is None:
+        return out, None
+    follow = library.clip_motion(name, fps)
+    yaw, offset = _alignment(out.slice(out.num_frames - 1, out.num_frames), follow.slice(0, 1))
+    follow = place(follow, yaw, offset)
+    overlap = max(1, min(int(round(settings.chain_blend * fps)), follow.num_frames - 1, out.num_frames - 1))
+    tail = out.slice(out.num_frames - 1, out.num_frames)
+    held = _join(*([tail] * overlap))
+    faded = blend(held, follow.slice(0, overlap), fade_weights(overlap))
+    return _join(out.slice(0, out.num_frames - 1), faded, follow.slice(overlap, follow.num_frames)), name
+
+
+def _resume_or_hold(
+    out: Motion, source: Motion, impact: Impact, library: Library, match: Match, chained: str | None,
+    settings: ReactionSettings,
+) -> tuple[Motion, int | None]:
+    """Resume the source after a standing ending; else hold the last pose up to the source's end."""
+    standing = chained is not None or not match.reaction_class.startswith("fall_")
+    first = int(np.ceil(impact.frame))
+    window = max(2, int(round(library.window * source.fps / library.fps)))
+    if settings.resume and standing and source.num_frames - first > window:
+        return _resume(out, source, first, window)
+    missing = source.num_frames - out.num_frames
+    if missing > 0:
+        last = out.slice(out.num_frames - 1, out.num_frames)
+        out = _join(out, *([last] * missing))
+    return out, None
+
+
+def _resume(out: Motion, source: Motion, first: int, window: int) -> tuple[Motion, int]:
+    """Align the source's best re-entry window (Eq. 1, starting at or after `first`) with the last
+    `window` frames of `out`, fade over that window, and play the source on from there."""
+    roles = source.skeleton.roles or assign_roles(source.skeleton)
+    tail = out.slice(out.num_frames - window, out.num_frames)
+    query = Query(frame_features(tail, roles))
+    candidates = frame_features(source.slice(first, source.num_frames), roles)
+    starts = np.arange(candidates.num_frames - window + 1)
+    costs = window_costs(candidates, starts, query,
+                         joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS))  # fmt: skip
+    entry = first + int(np.argmin(costs))
+    yaw, offset = _alignment(tail.slice(0, 1), source.slice(entry, entry + 1))
+    resumed = place(source.slice(entry, source.num_frames), yaw, offset)
+    faded = blend(tail, resumed.slice(0, window), fade_weights(window))
+    rest = resumed.slice(window, resumed.num_frames)
+    return _join(out.slice(0, out.num_frames - window), faded, rest), entry
+
+
+# ---------------------------------------------------------------------------------------------
+# Helpers
+
+
+def _alignment(anchor: Motion, moving: Motion) -> tuple[float, tuple[float, float]]:
+    """(yaw, offset) that put the first frame of `moving` on the first frame of `anchor`: same
+    pelvis ground point and heading (window.py's heading frame)."""
+    roles = anchor.skeleton.roles or assign_roles(anchor.skeleton)
+    a, m = frame_features(anchor.slice(0, 1), roles), frame_features(moving.slice(0, 1), roles)
+    yaw = float(a.heading[0] - m.heading[0])
+    offset = a.ground[0] - yaw_rotate(yaw, np.append(m.ground[0], 0.0))[:2]
+    return yaw, (float(offset[0]), float(offset[1]))
+
+
+def _frames(motion: Motion, first: int, count: int) -> Motion:
+    """`count` frames from `first`, the last frame repeated past the motion's end."""
+    index = np.minimum(np.arange(first, first + count), motion.num_frames - 1)
+    local_pos = None if motion.local_pos is None else motion.local_pos[index]
+    return Motion(motion.skeleton, motion.fps, motion.root_pos[index], motion.local_rot[index], local_pos)
+
+
+def _join(*parts: Motion) -> Motion:
+    out = parts[0]
+    for part in parts[1:]:
+        if part.num_frames:
+            out = out.concat(part)
+    return out

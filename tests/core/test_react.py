@@ -1,0 +1,154 @@
+"""The reaction pipeline (core/react.py) on the sample walk and the sample library: real physics,
+real search. The classifier is not needed here: overrides and the whole-library search stand in."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from reactive_anim.core import bvh, quat
+from reactive_anim.core.blend import place
+from reactive_anim.core.errors import Cancelled, ImpactError, LibraryError
+from reactive_anim.core.impact import Impact
+from reactive_anim.core.library import load_library
+from reactive_anim.core.react import ReactionSettings, bake_reactions, character_ragdoll, react
+from tests.support.mocap import REPO
+
+B = 40  # a frame of the walk with a foot planted
+
+
+@pytest.fixture(scope="module")
+def walk():
+    return bvh.read_bvh(REPO / "sample_clips" / "walk.bvh")
+
+
+@pytest.fixture(scope="module")
+def library(tmp_path_factory):
+    return load_library(REPO / "sample_clips", cache_dir=tmp_path_factory.mktemp("cache"))
+
+
+@pytest.fixture(scope="module")
+def ragdoll(walk):
+    return character_ragdoll(walk)
+
+
+def forward(motion, frame: int) -> np.ndarray:
+    """The walker's forward on the ground at a frame: perpendicular to the hip line."""
+    pos = motion.global_positions()[frame]
+    names = motion.skeleton.names
+    left = pos[names.index("thigh.L")] - pos[names.index("thigh.R")]
+    f = np.cross(left, [0.0, 0.0, 1.0])
+    return f / np.linalg.norm(f)
+
+
+def test_an_override_forces_the_class_and_f_is_the_clips_pose(walk, library, ragdoll) -> None:
+    """With a forced class the search covers that class only; at F the output is exactly the placed
+    clip's frame (the CF blend's end), and before B exactly the input."""
+    impact = Impact(B, "chest", tuple(forward(walk, B)), 120.0, reaction="step_forward")
+    r = react(walk, impact, library, ragdoll=ragdoll)
+    assert (r.reaction_class, r.scope) == ("step_forward", "step_forward")
+    out = r.motion
+    assert np.array_equal(out.local_rot[:B], walk.local_rot[:B]) and np.array_equal(out.root_pos[:B], walk.root_pos[:B])
+    clip = place(library.clip_motion(r.clip, walk.fps), *r.placement)
+    frame_e = int(round((r.jump_frame + library.window - 1) / library.fps * walk.fps))
+    at_f = frame_e + (r.frame_f - r.frame_c)
+    assert np.allclose(out.local_rot[r.frame_f], clip.local_rot[at_f], atol=1e-12)
+    assert np.allclose(out.root_pos[r.frame_f], clip.root_pos[at_f], atol=1e-12)
+    assert r.frame_b == B < r.frame_c < r.frame_f <= r.end_frame
+
+
+def test_the_transition_has_no_velocity_step_at_c_or_f(walk, library, ragdoll) -> None:
+    """Joint angular speed and root speed change by little more from frame to frame at C and F than
+    the input walk's own frame-to-frame changes do (the fade's ends are flat)."""
+    impact = Impact(B, "chest", tuple(forward(walk, B)), 120.0, reaction="step_forward")
+    r = react(walk, impact, library, ragdoll=ragdoll)
+    rot = r.motion.local_rot
+    speed = quat.angle_between(rot[1:], rot[:-1]) * walk.fps  # (T-1, J) rad/s
+    jumps = np.abs(np.diff(speed, axis=0)).max(axis=1)  # per frame, the largest change of any joint
+    walk_speed = quat.angle_between(walk.local_rot[1:], walk.local_rot[:-1]) * walk.fps
+    typical = np.percentile(np.abs(np.diff(walk_speed, axis=0)).max(axis=1), 99)
+    for frame in (r.frame_c, r.frame_f):
+        assert jumps[frame - 2 : frame + 1].max() < 3.0 * typical, (frame, jumps[frame - 2 : frame + 1], typical)
+
+
+def test_a_fall_chains_its_get_up_and_a_stumble_resumes_the_walk(walk, library, ragdoll) -> None:
+    fall = react(walk, Impact(B, "chest", tuple(forward(walk, B)), 250.0, reaction="fall_forward_hands"),
+                 library, ragdoll=ragdoll)  # fmt: skip
+    assert fall.chained is not None and fall.chained.startswith("getup")
+    stumble = react(walk, Impact(B, "chest", tuple(forward(walk, B)), 80.0, reaction="step_forward"),
+                    library, ragdoll=ragdoll)  # fmt: skip
+    assert stumble.chained is None and stumble.resumed_at is not None and stumble.resumed_at >= B
+    for r in (fall, stumble):
+        # From F on everything is spliced (clip, get-up, resumed walk): no root jump there. (In BC and
+        # CD the push itself may move the pelvis at 4 m/s: 2.6 m/s of J/M on a 1.3 m/s walk.)
+        speed = np.linalg.norm(np.diff(r.motion.root_pos[r.frame_f :], axis=0), axis=1) * walk.fps
+        assert speed.max() < 4.0, "a root jump: the root moved faster than 4 m/s between two frames"
+        assert r.motion.num_frames >= walk.num_frames
+
+
+def test_same_input_same_output(walk, library, ragdoll) -> None:
+    impact = Impact(B, "pelvis", (0.3, 1.0, 0.0), 150.0)
+    a, b = react(walk, impact, library, ragdoll=ragdoll), react(walk, impact, library, ragdoll=ragdoll)
+    assert a.clip == b.clip and a.jump_frame == b.jump_frame and a.cost == b.cost
+    assert np.array_equal(a.motion.local_rot, b.motion.local_rot) and np.array_equal(a.motion.root_pos, b.motion.root_pos)
+
+
+@pytest.mark.parametrize(
+    ("impact", "message"),
+    [
+        (Impact(10_000, "chest", (1, 0, 0), 50.0), "outside the motion's frames"),
+        (Impact(B, "tail", (1, 0, 0), 50.0), "no bone 'tail'"),
+        (Impact(B, "chest", (1, 0, 0), 50.0, reaction="cartwheel"), "unknown reaction 'cartwheel'"),
+    ],
+)
+def test_bad_impacts_name_the_impact(walk, library, ragdoll, impact, message) -> None:
+    with pytest.raises(ImpactError, match=message):
+        react(walk, impact, library, ragdoll=ragdoll)
+
+
+def test_an_impact_too_early_for_the_search_window_says_so(walk, library, ragdoll) -> None:
+    """With a short reaction window at the first frame there is not a search window of motion yet."""
+    with pytest.raises(ImpactError, match="too early"):
+        react(walk, Impact(0, "chest", (1, 0, 0), 50.0), library, settings=ReactionSettings(reaction_window=0.05), ragdoll=ragdoll)
+
+
+def test_a_zero_direction_is_an_impact_error() -> None:
+    with pytest.raises(ImpactError, match="no length"):
+        Impact(B, "chest", (0, 0, 0), 50.0)
+
+
+def test_a_class_the_library_lacks_is_a_library_error(walk, library, ragdoll, tmp_path) -> None:
+    (tmp_path / "library.toml").write_text(
+        f'[[clip]]\nfile = "{REPO / "sample_clips" / "step_back_1.bvh"}"\nclass = "step_back"\n', encoding="utf-8"
+    )
+    small = load_library(tmp_path / "library.toml", cache_dir=tmp_path / "cache")
+    with pytest.raises(LibraryError, match="no clips of class 'fall_side_knees'"):
+        react(walk, Impact(B, "chest", (1, 0, 0), 50.0, reaction="fall_side_knees"), small, ragdoll=ragdoll)
+
+
+def test_a_second_impact_during_the_first_reaction_reacts_from_it(walk, library) -> None:
+    first = Impact(B, "chest", tuple(forward(walk, B)), 90.0, reaction="step_forward")
+    single = bake_reactions(walk, [first], library)
+    r1 = single.reactions[0]
+    during = Impact((r1.frame_f + r1.end_frame) // 2, "chest", tuple(-forward(walk, B)), 150.0, reaction="step_back")
+    calls: list[tuple[int, int, str]] = []
+    baked = bake_reactions(walk, [during, first], library, progress=lambda i, n, step: calls.append((i, n, step)))
+    assert [r.impact for r in baked.reactions] == [first, during]  # time order
+    assert calls == [(0, 2, "react"), (1, 2, "react"), (2, 2, "done")]
+    # Up to the second impact the bake is the single reaction's; the second starts from it.
+    b2 = int(np.ceil(during.frame))
+    assert np.array_equal(baked.motion.local_rot[:b2], single.motion.local_rot[:b2])
+    assert baked.reactions[1].reaction_class == "step_back"
+
+
+def test_cancel_stops_with_nothing(walk, library) -> None:
+    with pytest.raises(Cancelled):
+        bake_reactions(walk, [Impact(B, "chest", (1, 0, 0), 50.0)], library, cancel=lambda: True)
+
+
+def test_settings_change_the_transition(walk, library, ragdoll) -> None:
+    impact = Impact(B, "chest", tuple(forward(walk, B)), 120.0, reaction="step_forward")
+    short = react(walk, impact, library, settings=ReactionSettings(transition=0.1), ragdoll=ragdoll)
+    long = react(walk, impact, library, settings=ReactionSettings(transition=0.5), ragdoll=ragdoll)
+    assert short.frame_f - short.frame_c == round(0.1 * walk.fps)
+    assert long.frame_f - long.frame_c == round(0.5 * walk.fps)
