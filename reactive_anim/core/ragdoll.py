@@ -122,6 +122,12 @@ JOINT_STIFFNESS_PER_KG = 0.5
 # Limits are soft constraints in MuJoCo; a time constant of 2.5 steps keeps overshoot to a few degrees.
 LIMIT_SOLREF = (2.5 * TIMESTEP, 1.0)
 HINGE_NAMES = ("flex", "twist", "abd")
+# Servo stiffness groups (simulate.ServoGains), by Table 1 joint kind.
+JOINT_GROUPS = ("legs", "trunk", "arms", "neck")
+GROUP_OF_PART = {
+    "hip": "legs", "knee": "legs", "ankle": "legs", "waist": "trunk", "back": "trunk",
+    "shoulder": "arms", "elbow": "arms", "wrist": "arms", "neck": "neck",
+}  # fmt: skip
 
 
 def part_of(role: str) -> str:
@@ -198,9 +204,12 @@ class Ragdoll:
     body_parents: np.ndarray  # parent body per ragdoll body, the root's own index (0) for the root
     actuator_qpos: np.ndarray  # qpos address of each actuator's joint
     actuator_mass: np.ndarray  # mass each actuator's servo moves (mass_moved)
+    actuator_group: np.ndarray  # each actuator's index into JOINT_GROUPS
     limit_lo: np.ndarray  # per hinge (hinge order), its range in radians
     limit_hi: np.ndarray
     sole_geoms: np.ndarray  # geom ids of the two feet's sole capsules
+    floor_geom: int  # geom id of the floor plane
+    body_of_geom: np.ndarray  # per MuJoCo geom, the ragdoll body it belongs to (-1: the floor)
     dof_body: dict[int, str]  # body name per hinge dof address
 
     @property
@@ -728,6 +737,11 @@ def _with_addresses(body: RagdollBody, model: mujoco.MjModel) -> RagdollBody:
     )
 
 
+def _body_of_geom(bodies: list[RagdollBody], model: mujoco.MjModel) -> np.ndarray:
+    slot = {b.body_id: k for k, b in enumerate(bodies)}
+    return np.array([slot.get(int(model.geom_bodyid[g]), -1) for g in range(model.ngeom)], dtype=int)
+
+
 def _frozen(array: np.ndarray) -> np.ndarray:
     array = np.array(array)
     array.flags.writeable = False
@@ -761,10 +775,16 @@ def _index_arrays(skeleton: Skeleton, bodies: list[RagdollBody], model: mujoco.M
         "actuator_mass": np.concatenate(
             [np.full(len(b.hinges), mass_moved(children, b)) for b in bodies[1:]] or [np.zeros(0)]
         ),
+        "actuator_group": np.concatenate(
+            [np.full(len(b.hinges), JOINT_GROUPS.index(GROUP_OF_PART[part_of(b.name)])) for b in bodies[1:]]
+            or [np.zeros(0)]
+        ).astype(int),
+        "body_of_geom": _body_of_geom(bodies, model),
         "limit_lo": ranges[:, 0],
         "limit_hi": ranges[:, 1],
         "sole_geoms": np.array([int(model.geom(name).id) for name in ("ankle_l", "ankle_r")], dtype=int),
     }
     frozen: dict = {name: _frozen(a) for name, a in arrays.items()}
     frozen["dof_body"] = {int(adr): b.name for b in bodies for adr in b.dof_adr}
+    frozen["floor_geom"] = int(model.geom("floor").id)
     return frozen

@@ -61,7 +61,7 @@ import numpy as np
 from . import quat
 from .errors import SimulationError, SkeletonError
 from .impact import Impact
-from .ragdoll import TIMESTEP, Ragdoll
+from .ragdoll import JOINT_GROUPS, TIMESTEP, Ragdoll
 from .skeleton import Motion
 
 REACTION_WINDOW = 0.25  # seconds, BC: about a human reaction time (paper: ~15 frames)
@@ -107,7 +107,11 @@ class SimResult:
 
     motion: the full skeleton's pose per sampled frame; frames[i] is its frame number on the
       input motion's clock (BC) or the target's (CD).
-    com, com_velocity: (T, 3) centre of mass and its velocity per sampled frame.
+    com, com_velocity: (T, 3) centre of mass (world) and its velocity per sampled frame.
+    floor: the height of the floor the run stood on (the mocap's ground, see ground_level).
+    contacts: (T, B) which ragdoll bodies (Ragdoll.bodies order) touch the floor at each sample.
+    first_contact: per body name, the time in seconds after the run's start of the first sample at
+      which it touches the floor (bodies that never do are absent); the feet usually at 0.
     state: the state at the last sampled frame, to continue from (C for BC).
     """
 
@@ -117,16 +121,33 @@ class SimResult:
     qvel: np.ndarray
     com: np.ndarray
     com_velocity: np.ndarray
+    floor: float
+    contacts: np.ndarray
+    first_contact: dict[str, float]
     state: SimState
+
+    @property
+    def com_height(self) -> np.ndarray:
+        """(T,) the centre of mass's height above the run's floor."""
+        return self.com[:, 2] - self.floor
 
 
 @dataclass(frozen=True)
 class ServoGains:
-    """Eq. 2's PD gains, per kg the joint moves (see mass_moved): kp = stiffness * mass (N·m/rad),
-    kv = damping_time * kp (N·m·s/rad)."""
+    """Eq. 2's PD gains, per kg the joint moves (see mass_moved): kp = stiffness * group * mass
+    (N·m/rad), kv = damping_time * kp (N·m·s/rad); `group` is the factor of the joint's group
+    (ragdoll.JOINT_GROUPS: legs = hips, knees, ankles; trunk = waist, back; arms; neck)."""
 
     stiffness: float = CD_STIFFNESS
     damping_time: float = CD_DAMPING_TIME
+    legs: float = 1.0
+    trunk: float = 1.0
+    arms: float = 1.0
+    neck: float = 1.0
+
+    def group_factors(self) -> np.ndarray:
+        """Factors in ragdoll.JOINT_GROUPS order."""
+        return np.array([getattr(self, group) for group in JOINT_GROUPS])
 
 
 CD_GAINS = ServoGains()
@@ -406,7 +427,7 @@ def _place_bodies(ws: Workspace, held: HeldPose) -> None:
 def _set_servos(ws: Workspace, gains: ServoGains) -> None:
     """Position-actuator gains kp = stiffness * mass moved, kv = damping_time * kp."""
     model = ws.model
-    kp = gains.stiffness * ws.ragdoll.actuator_mass
+    kp = gains.stiffness * gains.group_factors()[ws.ragdoll.actuator_group] * ws.ragdoll.actuator_mass
     kv = kp * gains.damping_time
     model.actuator_gainprm[:, 0] = kp
     model.actuator_biasprm[:, 0] = 0.0
@@ -677,6 +698,7 @@ def _step_and_sample(ws: Workspace, start: SimState, plan: _Plan, watch: _Watch)
     step = 0
     data_ctrl = data.ctrl  # one view on MjData's buffer, not a new wrapper per step
     qpos_arr, qvel_arr = np.empty((len(goals), model.nq)), np.empty((len(goals), model.nv))
+    contacts = np.zeros((len(goals), len(ws.ragdoll.bodies)), dtype=bool)
     for n, goal in enumerate(goals):
         while step < goal:
             data_ctrl[:] = ctrl[step]
@@ -688,11 +710,27 @@ def _step_and_sample(ws: Workspace, start: SimState, plan: _Plan, watch: _Watch)
         watch.check()
         qpos_arr[n] = data.qpos
         qvel_arr[n] = data.qvel
+        contacts[n] = _floor_contacts(ws, data)
     rots, pelvis, com, com_vel = _samples(ws, qpos_arr, qvel_arr)
     motion = _to_motion(ws.ragdoll, start.held, rots, pelvis, plan.fps)
     end = SimState(qpos=qpos_arr[-1].copy(), qvel=qvel_arr[-1].copy(), held=start.held, floor=start.floor)
+    times = (np.asarray(plan.sample_offsets, dtype=float) - plan.start_offset) / plan.fps
+    first = {body.name: float(times[np.argmax(contacts[:, k])])
+             for k, body in enumerate(ws.ragdoll.bodies) if contacts[:, k].any()}  # fmt: skip
     return SimResult(motion=motion, frames=np.asarray(plan.sample_offsets, dtype=float), qpos=qpos_arr,
-                     qvel=qvel_arr, com=com, com_velocity=com_vel, state=end)  # fmt: skip
+                     qvel=qvel_arr, com=com, com_velocity=com_vel, floor=start.floor, contacts=contacts,
+                     first_contact=first, state=end)  # fmt: skip
+
+
+def _floor_contacts(ws: Workspace, data: mujoco.MjData) -> np.ndarray:
+    """(B,) which ragdoll bodies touch the floor now (a contact between the floor and their geom)."""
+    touching = np.zeros(len(ws.ragdoll.bodies), dtype=bool)
+    if data.ncon:
+        geoms = data.contact.geom[: data.ncon]
+        floor = ws.ragdoll.floor_geom
+        other = np.where(geoms[:, 0] == floor, geoms[:, 1], geoms[:, 0])[np.any(geoms == floor, axis=1)]
+        touching[ws.ragdoll.body_of_geom[other]] = True
+    return touching
 
 
 def _first_step(

@@ -30,7 +30,7 @@ import pytest
 from reactive_anim.core import bvh
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.ragdoll import Ragdoll, build_ragdoll
-from reactive_anim.core.simulate import SimResult, simulate_impact
+from reactive_anim.core.simulate import SimResult, simulate_impact, track
 from reactive_anim.core.skeleton import Motion
 from tests.support.mocap import REPO
 
@@ -211,3 +211,24 @@ def test_same_push_twice_gives_bit_identical_results(clips):
         assert np.array_equal(a, b)
     assert first.state.floor == second.state.floor
     assert np.all(np.isfinite(first.qpos))
+
+
+def test_contacts_report_the_feet_then_the_body_that_lands(clips):
+    """Walking, a foot touches the floor during BC; after a tackle-strength push the
+    character lands, and the first contact of each body is reported once, in time order with its
+    samples. The centre of mass height is measured from the run's own floor."""
+    walk, ragdoll = clips["walk"].motion, clips["walk"].ragdoll
+    forward, _ = character_axes(clips["walk"], 40)
+    bc = simulate_impact(ragdoll, walk, Impact(40, bone(clips["walk"], "chest"), tuple(forward), 300.0))
+    assert bc.contacts.shape == (len(bc.frames), len(ragdoll.bodies))
+    feet = [k for k, b in enumerate(ragdoll.bodies) if b.name.startswith("ankle")]
+    assert bc.contacts[:, feet].any()
+    cd = track(ragdoll, bc.state, walk, 1.5, target_start=int(bc.frames[-1]))
+    landed = {name for name in cd.first_contact if not name.startswith("ankle")}
+    assert landed, "a 300 N·s push should put something other than the feet on the floor"
+    for name, t in cd.first_contact.items():
+        k = [b.name for b in ragdoll.bodies].index(name)
+        first = int(np.argmax(cd.contacts[:, k]))
+        assert t == pytest.approx((cd.frames[first] - cd.frames[0]) / walk.fps)
+    assert 0.8 < bc.com_height[0] < 1.2  # a standing adult's centre of mass, about 55% of height
+    assert cd.com_height[-1] < 0.5  # lying down
