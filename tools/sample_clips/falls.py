@@ -1,18 +1,15 @@
-"""The physics-made sample reactions: falls from the ragdoll, sways from the balance pendulum.
+"""Falls, made by physics: the ragdoll pushed, then PD servos toward protective key poses.
 
-Imported by tools/make_sample_clips.py (which lists these clips in its CLIPS); not run on its own.
-
-FALLS. The ragdoll (reactive_anim.core.ragdoll, anatomical profile, built on the sample skeleton
-with the idle stand as its reference) starts from a frame of the idle stand or of the walk; walk
-starts use frames where both feet's toes are flat (24, 56, 88, ...: the ragdoll has no toe joint,
-so toes bent at the push stay bent through the fall, and from frame 40 a toe tip went 1.7-4 cm
-into the floor); the push lands there (simulate_impact:
-an impulse at a body's centre of mass, then 0.25 s of forward dynamics with weak servos toward the
-motion continuing, a human reaction time); from then on PD servos (simulate.track) drive the
-joints toward a keyframed *target* of protective key poses (arms out to catch, knees bending, a
-tuck) while gravity and the floor contacts decide where the body goes. The root is never
-actuated: nothing holds the character up. A fall ends at rest on the floor, and its `next` is
-the get-up that fits how it lies.
+The ragdoll (reactive_anim.core.ragdoll, anatomical profile, built on the sample skeleton with the
+idle stand as its reference) starts from a frame of the idle stand or of the walk; walk starts use
+frames where both feet's toes are flat (24, 56, 88, ...: the ragdoll has no toe joint, so toes bent
+at the push stay bent through the fall, and from frame 40 a toe tip went 1.7-4 cm into the floor);
+the push lands there (simulate_impact: an impulse at a body's centre of mass, then 0.25 s of
+forward dynamics with weak servos toward the motion continuing, a human reaction time); from then
+on PD servos (simulate.track) drive the joints toward a keyframed *target* of protective key poses
+(arms out to catch, knees bending, a tuck) while gravity and the floor contacts decide where the
+body goes. The root is never actuated: nothing holds the character up. A fall ends at rest on the
+floor, and its `next` is the get-up that fits how it lies.
 
 What the simulation output needs before it is written, and why:
 - Knee and elbow are hinges in the sample skeleton (the clip tests allow 1 degree off the hinge),
@@ -22,41 +19,40 @@ What the simulation output needs before it is written, and why:
   and the head at one (neck, head merged), where the sample skeleton shares a bend over three and
   two joints: the simulated bend is spread evenly over them (same total, same end orientation).
 - The ragdoll has no toe joint (the toes are merged into the foot and keep the start frame's
-  bend, none at the committed starts): the toes are written flat. The simulation's floor (simulate.py puts it where the start
-  frame's soles are, a few mm off z = 0) is moved to z = 0.
+  bend, none at the committed starts): the toes are written flat. The simulation's floor
+  (simulate.py puts it where the start frame's soles are, a few mm off z = 0) is moved to z = 0.
 - Every other joint angle is written as the simulation gave it.
 
-SWAYS. Pure PD tracking has no balance feedback: the ragdoll held by PD servos toward the standing
-pose topples whatever the push (measured from the idle's first frame, tracking STAND: with no push
-the pelvis is below 0.8 m after 2.5 s, after a 15 N·s push on the chest after 1.3 s). So the
-sways are made as the stepping clips are, by the linear inverted pendulum of
-make_sample_clips.balance_plan with the feet kept planted: the centre of pressure moves within the
-feet (ankle strategy) by a capture-point controller, the trunk bends against the push as the body's
-alarm rises (hip strategy), and the capture point never leaves the support polygon, so no step.
+MuJoCo gives the same bits for the same input on one machine (fixed step counts), but not
+necessarily on another CPU or MuJoCo build: the falls are chaotic, so their later frames may differ
+there (tests/core/test_sample_clips.py compares them with tolerances).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 
-import make_sample_clips as msc
-from make_sample_clips import FORWARD, FPS, SIDES, X_AXIS, pose
 from reactive_anim.core import quat
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.ragdoll import ANATOMICAL_LIMITS, Ragdoll, build_ragdoll
-from reactive_anim.core.simulate import ServoGains, simulate_impact, track
+from reactive_anim.core.simulate import ServoGains, Workspace, simulate_impact, track
 from reactive_anim.core.skeleton import Motion
+
+from .curves import key_timeline
+from .gaits import walk_clip
+from .idle import idle_clip
+from .poses import pose, pose_vector, posed
+from .skeleton import FPS, SIDES, UP, X_AXIS, clip_motion, heading, sample_skeleton
 
 HINGE_LOCK = 0.1  # knee and elbow twist and abduction range on this tool's ragdoll
 
 
 @lru_cache(maxsize=1)
 def _start_motions() -> dict[str, Motion]:
-    return {"idle": msc.idle_clip(), "walk": msc.walk_clip()}
+    return {"idle": idle_clip(), "walk": walk_clip()}
 
 
 @lru_cache(maxsize=1)
@@ -69,7 +65,7 @@ def sample_ragdoll() -> Ragdoll:
     for part in ("knee", "elbow"):
         flexion = limits[part][0]
         limits[part] = ((max(flexion[0], 1.0), flexion[1]), (-HINGE_LOCK, HINGE_LOCK), (-HINGE_LOCK, HINGE_LOCK))
-    return build_ragdoll(msc.sample_skeleton(), profile=limits, reference=_start_motions()["idle"])
+    return build_ragdoll(sample_skeleton(), profile=limits, reference=_start_motions()["idle"])
 
 
 @dataclass(frozen=True)
@@ -94,22 +90,17 @@ class Fall:
     lift: float = 0.0  # upward share of the push direction
 
 
-def _target(keys: tuple[tuple[float, dict[str, float]], ...], duration: float) -> Motion:
-    """The keyed target as a Motion: pose parameters eased between the keys (root is irrelevant:
-    the servos follow joint angles only)."""
-    skeleton = msc.sample_skeleton()
+def servo_target(keys: tuple[tuple[float, dict[str, float]], ...], duration: float) -> Motion:
+    """The keyed target as a Motion: pose parameters eased between the keys (minimum jerk), the last
+    held (root is irrelevant: the servos follow joint angles only)."""
+    skeleton = sample_skeleton()
     times = np.array([k[0] for k in keys])
-    values = np.array([msc._vector(k[1]) for k in keys])
-    count = int(round(duration * FPS)) + 4
+    values = np.array([pose_vector(k[1]) for k in keys])
+    count = round(duration * FPS) + 4
     t = np.arange(count) / FPS
-    if len(keys) == 1:
-        rows = np.tile(values[0], (count, 1))
-    else:
-        seg = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(keys) - 2)
-        e = msc._ease((t - times[seg]) / (times[seg + 1] - times[seg]))
-        rows = values[seg] + (values[seg + 1] - values[seg]) * e[:, None]
-    root, local = msc._fk_pose(skeleton, rows)
-    return msc._motion(skeleton, root, local)
+    rows = np.tile(values[0], (count, 1)) if len(keys) == 1 else key_timeline(times, t).between(values)
+    root, local = posed(skeleton, rows)
+    return clip_motion(skeleton, root, local)
 
 
 def _project_hinge(q: np.ndarray, axis: np.ndarray) -> np.ndarray:
@@ -130,6 +121,7 @@ def _spread(local: np.ndarray, joints: list[int]) -> None:
 
 
 def _clean(motion: Motion, floor: float) -> Motion:
+    """The simulation's output made fit for the sample skeleton (see the module docstring)."""
     sk = motion.skeleton
     local = quat.normalize(motion.local_rot.copy())
     for side in SIDES:  # the ragdoll has no toes: they stay as they were at the push; flat here
@@ -143,10 +135,9 @@ def _clean(motion: Motion, floor: float) -> Motion:
     return Motion(skeleton=sk, fps=float(FPS), root_pos=root, local_rot=local)
 
 
-def _direction(angle: float, lift: float = 0.0) -> tuple[float, float, float]:
-    a = np.radians(angle)
-    d = np.cos(a) * FORWARD + np.sin(a) * X_AXIS + lift * msc.UP
-    return tuple(float(v) for v in d)
+def push_direction(fall: Fall) -> tuple[float, float, float]:
+    """The fall's push direction in the world: its heading, plus `lift` of up."""
+    return tuple(float(v) for v in heading(fall.direction) + fall.lift * UP)
 
 
 @dataclass
@@ -159,14 +150,22 @@ class FallRun:
 
 
 def simulate_fall(fall: Fall) -> FallRun:
-    """Push, BC window, then PD tracking of the fall's keyed target; BC and CD joined at C."""
+    """Push, BC window, then PD tracking of the fall's keyed target; BC and CD joined at C (one
+    simulation workspace for both)."""
     ragdoll = sample_ragdoll()
+    workspace = Workspace(ragdoll)
     source = _start_motions()[fall.start]
-    impact = Impact(frame=fall.frame, bone=fall.bone, direction=_direction(fall.direction, fall.lift),
-                    strength=fall.strength)
-    bc = simulate_impact(ragdoll, source, impact)
-    target = _target(fall.keys, fall.duration)
-    cd = track(ragdoll, bc.state, target, fall.duration, gains=ServoGains(fall.stiffness, fall.damping_time))
+    impact = Impact(frame=fall.frame, bone=fall.bone, direction=push_direction(fall), strength=fall.strength)
+    bc = simulate_impact(ragdoll, source, impact, workspace=workspace)
+    target = servo_target(fall.keys, fall.duration)
+    cd = track(
+        ragdoll,
+        bc.state,
+        target,
+        fall.duration,
+        gains=ServoGains(stiffness=fall.stiffness, damping_time=fall.damping_time),
+        workspace=workspace,
+    )
     root = np.concatenate([bc.motion.root_pos, cd.motion.root_pos[1:]])
     local = np.concatenate([bc.motion.local_rot, cd.motion.local_rot[1:]])
     motion = _clean(Motion(skeleton=bc.motion.skeleton, fps=float(FPS), root_pos=root, local_rot=local), bc.state.floor)
@@ -188,12 +187,14 @@ def _trim_settled(motion: Motion) -> Motion:
     turn = quat.angle_between(motion.local_rot[1:], motion.local_rot[:-1]).max(axis=1) * motion.fps
     moving = (speed > SETTLED_SPEED) | (turn > SETTLED_TURN)
     last = int(np.flatnonzero(moving)[-1]) + 1 if moving.any() else 0
-    end = min(motion.num_frames, last + 1 + int(round(SETTLED_TAIL * FPS)))
-    return Motion(skeleton=motion.skeleton, fps=motion.fps, root_pos=motion.root_pos[:end],
-                  local_rot=motion.local_rot[:end])
+    end = min(motion.num_frames, last + 1 + round(SETTLED_TAIL * FPS))
+    return Motion(
+        skeleton=motion.skeleton, fps=motion.fps, root_pos=motion.root_pos[:end], local_rot=motion.local_rot[:end]
+    )
 
 
 def fall_clip(fall: Fall) -> Motion:
+    """The clip of a fall: its simulation, the still tail cut."""
     return _trim_settled(simulate_fall(fall).motion)
 
 
@@ -201,23 +202,29 @@ def fall_clip(fall: Fall) -> Motion:
 # The falls: key poses per class, variants as rows
 
 
+# The pose every face-down fall ends in: lying on the front, hands beside the chest, head up.
+LYING_FACE_DOWN = pose(arm_flex=40.0, arm_abd=45.0, elbow=100.0, hip_flex=0.0, knee=10.0, neck_pitch=-25.0, ankle=40.0)
+
+# Key-pose tables: one (time, pose) row per line.
+# fmt: off
+
+
 def _catch_forward(start: str, frame: int, direction: float, strength: float) -> Fall:
     """Arms thrown forward with the wrists bent back to catch, knees giving a little; the elbows
     yield once the hands are down and the body ends lying face down, head up."""
-    return Fall(start, frame, "chest", direction, strength, (
+    return Fall(start=start, frame=frame, bone="chest", direction=direction, strength=strength, keys=(
         (0.0, pose(arm_flex=50.0, elbow=20.0, knee=10.0, hip_flex=5.0)),
         (0.25, pose(arm_flex=95.0, arm_abd=15.0, elbow=15.0, wrist=-30.0, hip_flex=20.0, knee=25.0, spine_pitch=10.0,
                     neck_pitch=-30.0)),
         (0.9, pose(arm_flex=95.0, arm_abd=25.0, elbow=70.0, wrist=-30.0, hip_flex=5.0, knee=15.0, neck_pitch=-35.0)),
-        (1.6, pose(arm_flex=40.0, arm_abd=45.0, elbow=100.0, wrist=-30.0, hip_flex=0.0, knee=10.0, neck_pitch=-25.0,
-                   ankle=40.0)),
+        (1.6, pose(LYING_FACE_DOWN, wrist=-30.0)),
     ), next="getup_face_down.bvh")
 
 
 def _catch_backward(start: str, frame: int, direction: float, strength: float) -> Fall:
     """Arms reaching back and down with the wrists bent back, knees and hips bending to lower the
     body; the hands land first and the body ends sitting, propped on them."""
-    return Fall(start, frame, "chest", direction, strength, (
+    return Fall(start=start, frame=frame, bone="chest", direction=direction, strength=strength, keys=(
         (0.0, pose(arm_flex=-40.0, arm_abd=25.0, elbow=10.0, wrist=-50.0, hip_flex=40.0, knee=60.0, spine_pitch=25.0)),
         (0.4, pose(arm_flex=-60.0, arm_abd=25.0, elbow=10.0, wrist=-60.0, hip_flex=60.0, knee=80.0, spine_pitch=25.0,
                    neck_pitch=15.0)),
@@ -229,7 +236,7 @@ def _roll(start: str, frame: int, direction: float, strength: float) -> Fall:
     """A hard shove low on the back: chin to chest, arms forward, hips and knees pulled into a tuck
     so the body rolls over its rounded back; after a second the tuck opens and the body lies face up."""
     tuck = pose(arm_flex=90.0, elbow=60.0, knee=130.0, hip_flex=110.0, spine_pitch=70.0, neck_pitch=60.0)
-    return Fall(start, frame, "spine", direction, strength, (
+    return Fall(start=start, frame=frame, bone="spine", direction=direction, strength=strength, keys=(
         (0.0, pose(arm_flex=80.0, elbow=30.0, knee=30.0, hip_flex=30.0, spine_pitch=30.0, neck_pitch=30.0)),
         (0.3, tuck),
         (1.0, tuck),
@@ -240,9 +247,9 @@ def _roll(start: str, frame: int, direction: float, strength: float) -> Fall:
 
 def _sit(direction: float, strength: float, hip: float, knee: float, trunk: float, arms: float) -> Fall:
     """A light push back: a squat over half a second (hips `hip`, knees `knee` degrees) with the
-    trunk (`trunk`) and arms (`arms`) forward, so the pelvis drops onto the floor close behind the heels; then the legs
-    slide out straight into a long sit, arms forward."""
-    return Fall("idle", 0, "chest", direction, strength, (
+    trunk (`trunk`) and arms (`arms`) forward, so the pelvis drops onto the floor close behind the
+    heels; then the legs slide out straight into a long sit, arms forward."""
+    return Fall(start="idle", frame=0, bone="chest", direction=direction, strength=strength, keys=(
         (0.0, pose(hip_flex=20.0, knee=30.0, spine_pitch=15.0, arm_flex=40.0, elbow=20.0)),
         (0.5, pose(hip_flex=hip, knee=knee, ankle=-20.0, spine_pitch=trunk, neck_pitch=25.0, arm_flex=arms,
                    elbow=15.0)),
@@ -256,16 +263,14 @@ def _side_knees(direction: float, strength: float, knee: float) -> Fall:
     """A push at the hips from the side: the knees give (knees `knee` degrees over ankles bent up
     50, hips straight) so they travel forward and down; on the knees the body leans back, is carried
     over sideways by the push onto the hip and hand, and ends lying face down."""
-    return Fall("idle", 0, "pelvis", direction, strength, (
+    return Fall(start="idle", frame=0, bone="pelvis", direction=direction, strength=strength, keys=(
         (0.0, pose(hip_flex=0.0, knee=20.0, ankle=-15.0, arm_abd=20.0, elbow=20.0)),
-        (0.4, pose(hip_flex=0.0, knee=knee, ankle=-50.0, spine_pitch=0.0, arm_abd=20.0, arm_flex=30.0,
-                   elbow=70.0)),
+        (0.4, pose(hip_flex=0.0, knee=knee, ankle=-50.0, spine_pitch=0.0, arm_abd=20.0, arm_flex=30.0, elbow=70.0)),
         (0.75, pose(hip_flex=-15.0, knee=100.0, ankle=35.0, spine_pitch=-15.0, arm_abd=30.0, arm_flex=30.0,
                     elbow=70.0)),
         (1.5, pose(hip_flex=40.0, knee=130.0, ankle=50.0, spine_pitch=20.0, spine_roll=-20.0, arm_abd=30.0,
                    elbow=30.0)),
-        (2.3, pose(arm_flex=40.0, arm_abd=45.0, elbow=100.0, wrist=0.0, hip_flex=0.0, knee=10.0, neck_pitch=-25.0,
-                   ankle=40.0)),
+        (2.3, pose(LYING_FACE_DOWN, wrist=0.0)),
     ), next="getup_face_down.bvh", duration=5.0)
 
 
@@ -286,72 +291,5 @@ FALLS: dict[str, Fall] = {
     "fall_side_knees_2": _side_knees(90.0, 48.0, 40.0),
     "fall_side_knees_3": _side_knees(80.0, 48.0, 45.0),
 }
-
-
-# ---------------------------------------------------------------------------------------------
-# Sways: the pendulum with both feet planted
-
-
-@dataclass(frozen=True)
-class Sway:
-    direction: float  # degrees from the facing, positive to the character's left
-    speed: float  # centre-of-mass speed the push leaves, m/s
-
-
-SWAYS: dict[str, Sway] = {
-    "sway_balance_1": Sway(0.0, 0.36),
-    "sway_balance_2": Sway(180.0, 0.34),
-    "sway_balance_3": Sway(90.0, 0.42),
-}
-
-
-def sway_plan(sway: Sway) -> msc.StepPlan:
-    """The linear inverted pendulum of balance_plan, feet planted: the centre of pressure follows
-    the capture-point controller p = xi + 1.5 (xi - target), clipped to the soles' extent along
-    the push (ankle strategy). Raises if the capture point leaves the soles (that push needs a step)."""
-    dt = 1.0 / (FPS * msc.SIM_STEPS)
-    angle = np.radians(sway.direction)
-    axis = np.cos(angle) * FORWARD[:2] + np.sin(angle) * X_AXIS[:2]
-    feet = {side: np.array([s * msc.STAND_WIDTH / 2, 0.0]) for side, s in SIDES.items()}
-    lo = min(msc._interval(f + msc.SOLE, axis)[0] for f in feet.values())
-    hi = max(msc._interval(f + msc.SOLE, axis)[1] for f in feet.values())
-    target = float(np.mean([(f + msc.FOOT_CENTRE) @ axis for f in feet.values()]))
-    u, v, t = target, sway.speed, 0.0
-    alarm_state = np.zeros(2)
-    com, alarm, settled_at, frame = [], [], None, 0
-    while settled_at is None or frame < settled_at + int(0.6 * FPS):
-        com.append((u - target) * axis)
-        alarm.append(alarm_state[0])
-        for _ in range(msc.SIM_STEPS):
-            xi = u + v / msc.OMEGA
-            if not lo <= xi <= hi:
-                raise RuntimeError(f"{sway}: the capture point leaves the feet; that push needs a step")
-            p = float(np.clip(xi + 1.5 * (xi - target), lo, hi))
-            v += msc.OMEGA**2 * (u - p) * dt
-            u += v * dt
-            raw = min(abs(v) / 0.8, 1.0)
-            alarm_state += dt * np.array([alarm_state[1], 144.0 * (raw - alarm_state[0]) - 24.0 * alarm_state[1]])
-        frame += 1
-        if settled_at is None and t > 0.3 and abs(v) < 0.002 and abs(xi - target) < 0.002:
-            settled_at = frame
-        t += 1.0 / FPS
-    count = len(com)
-    ankles = {side: np.tile([*f, msc.ANKLE_Z * msc.HEIGHT], (count, 1)) for side, f in feet.items()}
-    pitch = {side: np.zeros(count) for side in SIDES}
-    # The alarm (speed / 0.8 m/s, smoothed) sets how far the trunk bends and the arms rise (the hip
-    # strategy); a sway's speeds are small, so it counts double here to be visible.
-    return msc.StepPlan(np.array(com), ankles, pitch, np.minimum(2.0 * np.array(alarm), 1.0), [])
-
-
-def sway_clip(sway: Sway) -> Motion:
-    """A sway: the stepping clip's body (pendulum root path, trunk and arms by the alarm, legs by IK
-    to the planted feet) on the planted-feet plan."""
-    push = msc.Push(direction=sway.direction, speed=sway.speed, max_step=0.0, first="L")
-    return msc.step_clip(push, plan=sway_plan(sway))
-
-
-CLIPS: dict[str, Callable[[], Motion]] = {
-    **{name: msc.clip_maker(sway_clip, sway, f"The pendulum sway {name}: {sway}") for name, sway in SWAYS.items()},
-    **{name: msc.clip_maker(fall_clip, fall, f"The physics fall {name}: {fall}") for name, fall in FALLS.items()},
-}
+# fmt: on
 NEXT: dict[str, str] = {name: fall.next for name, fall in FALLS.items()}

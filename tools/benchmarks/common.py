@@ -1,29 +1,19 @@
-"""What every benchmark shares: one core for BLAS, paths, timing, and the figure report.
-
-Import this before numpy (it limits BLAS threads, since figures are for one core).
-"""
+"""What every benchmark shares: the figure report (a JSON line per figure and a closing table),
+best-of-N timing, and where the shared mocap is."""
 
 from __future__ import annotations
 
-import os
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
 
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
-
-import json  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-from collections.abc import Callable  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-REPO = Path(__file__).resolve().parents[1]
-MOCAP = REPO.parent / "shared" / "mocap"
-sys.path.insert(0, str(REPO))
+from tests.support.mocap import MOCAP, mocap_files
 
 FIGURES: list[dict] = []
 
 
-def report(group: str, name: str, value: float, unit: str, **context) -> None:
+def report(group: str, name: str, value: float, unit: str, **context: object) -> None:
     """One figure: kept for the closing table and printed at once as a JSON line."""
     row = {"group": group, "name": name, "value": round(value, 6), "unit": unit, **context}
     FIGURES.append(row)
@@ -47,3 +37,14 @@ def print_table() -> None:
     for row in FIGURES:
         on = row.get("clip") or row.get("file") or row.get("library") or ""
         print(f"{row['group']:8s} {row['name']:58s} {row['value']:14.4f}  {row['unit']:9s} {on}")
+
+
+def largest_mocap() -> Path | None:
+    """The largest shared BVH file (by bytes), or None where ../shared/mocap is absent."""
+    files = sorted(mocap_files(), key=lambda p: p.stat().st_size)
+    return files[-1] if files else None
+
+
+def skipped(group: str, what: str = "") -> None:
+    """Say that a group (or part of one) is skipped for want of the shared mocap."""
+    print(f"# {group}: {what + ' ' if what else ''}skipped, no mocap at {MOCAP}")

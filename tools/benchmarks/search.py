@@ -1,19 +1,17 @@
-#!/usr/bin/env python3
 """Benchmark of the jump search (paper 2.4, Eq. 1): reference vs full vs class-narrowed, one core.
 
-    .venv/bpy-5.0/bin/python tools/bench_search.py
-
-`bench_search(report)` is what tools/bench.py calls; `report(group, name, value, unit, **context)`
-prints one figure. bench_common limits BLAS to one core before numpy loads.
-
-The library is built from every clip in ../shared/mocap (test and benchmark data only; classes
-by file name, as in tests/core/test_search.py). It has fewer than 100,000 frames, so a scaled
-library of at least 100,000 frames is made from the same real clips, each copy turned by a random
-yaw and moved on the ground, copies dealt round-robin over the 10 classes so that one class is a
-tenth of it. The reference (one candidate at a time, tests/core/search_reference.py) is timed on a
-slice of the scaled library and scaled to the whole (it takes about a minute per full query).
+The library is built from every clip in ../shared/mocap (test and benchmark data only; classes by
+file name: tests/support/library_clips.py's mocap_class, as the search tests use). It has fewer
+than 100,000 frames, so a scaled library of at least 100,000 frames is made from the same real
+clips, each copy turned by a random yaw and moved on the ground, copies dealt round-robin over the
+10 classes so that one class is a tenth of it. The reference (one candidate at a time,
+tests/support/search_reference.py) is timed on a slice of the scaled library and scaled to the
+whole (it takes about a minute per full query).
 Queries: library windows turned, moved and perturbed by 1 cm / 1 degree ("near") and by 5 cm /
 5 degrees ("far", closer to what a simulated pose looks like).
+
+Two figures look inside the index (the float32 bound of every window, the share the pivot bound
+prunes): they call search_index's private passes, as only a benchmark of the index should.
 """
 
 from __future__ import annotations
@@ -24,23 +22,36 @@ import time
 import tracemalloc
 from pathlib import Path
 
-from bench_common import MOCAP, print_table, report
+import numpy as np
 
-import numpy as np  # noqa: E402  (after bench_common limits BLAS to one core)
+from reactive_anim.core import search_index
+from reactive_anim.core.classes import CLASS_SLUGS
+from reactive_anim.core.library import ClipInfo, Library, load_library
+from reactive_anim.core.search_index import find_best
+from reactive_anim.core.window import (
+    TABLE2_POSITION_WEIGHTS,
+    TABLE2_ROTATION_WEIGHTS,
+    FrameFeatures,
+    Query,
+    joint_weights,
+    window_costs,
+    yaw_rotate,
+)
+from tests.support.library_clips import mocap_class, perturbed, write_toml
+from tests.support.mocap import mocap_files
+from tests.support.search_reference import reference_cost
 
-from reactive_anim.core import search  # noqa: E402
-from reactive_anim.core.library import CLASS_SLUGS, ClipInfo, Library, load_library  # noqa: E402
-from tests.core.search_reference import reference_cost  # noqa: E402
-from tests.core.test_library import write_toml  # noqa: E402
-from tests.core.test_search import mocap_class, perturbed  # noqa: E402
+from .common import report, skipped
 
 GROUP = "search"
 SCALED_FRAMES = 100_000
 CACHE = Path(tempfile.gettempdir()) / "reactive_anim_bench_search"
+WP = joint_weights(TABLE2_POSITION_WEIGHTS)
+WQ = joint_weights(TABLE2_ROTATION_WEIGHTS)
 
 
 def real_library() -> Library | None:
-    files = sorted(MOCAP.glob("**/*.bvh")) if MOCAP.is_dir() else []
+    files = mocap_files()
     if not files:
         return None
     folder = CACHE / "real"
@@ -59,9 +70,8 @@ def scaled_library(real: Library, frames: int, seed: int = 0) -> Library:
             a = real.clip_start(c)
             f = real.features(a, a + clip.num_frames)
             yaw = rng.uniform(-np.pi, np.pi)
-            cs, sn = np.cos(yaw), np.sin(yaw)
-            ground = f.ground @ np.array([[cs, sn], [-sn, cs]]) + rng.uniform(-20, 20, 2)
-            moved = search.FrameFeatures(f.pos_local, f.heading + yaw, ground, f.rot)
+            ground = yaw_rotate(yaw, np.pad(f.ground, ((0, 0), (0, 1))))[:, :2] + rng.uniform(-20, 20, 2)
+            moved = FrameFeatures(f.pos_local, f.heading + yaw, ground, f.rot)
             info = ClipInfo(f"{clip.name}#copy{k}", clip.path, CLASS_SLUGS[len(parts) % len(CLASS_SLUGS)],
                             clip.source_fps, clip.source_start, clip.num_frames, None)  # fmt: skip
             parts.append((info, moved))
@@ -74,7 +84,7 @@ def scaled_library(real: Library, frames: int, seed: int = 0) -> Library:
 
 def make_queries(
     lib: Library, count: int, noise_m: float, noise_deg: float, seed: int, slug: str | None = None
-) -> list[search.Query]:
+) -> list[Query]:
     """Library windows turned, moved and perturbed; from one class's clips when `slug` is given
     (what a correct classifier would narrow to)."""
     rng = np.random.default_rng(seed)
@@ -87,61 +97,64 @@ def make_queries(
     return queries
 
 
-def time_queries(lib: Library, queries: list[search.Query], classes=None, runs: int = 3) -> tuple[float, float]:
+def best_window(lib: Library, query: Query, classes: list[str] | None = None) -> search_index.Best:
+    """The exact best window over the given classes (default: all), as the search finds it."""
+    index = lib.search_index()
+    return find_best(index, query, list(index.class_tops) if classes is None else classes, WP, WQ)
+
+
+def time_queries(
+    lib: Library, queries: list[Query], classes: list[str] | None = None, runs: int = 3
+) -> tuple[float, float]:
     """Median over queries of the best-of-`runs` time (ms), and the mean windows evaluated exactly."""
     times, evaluated = [], []
     for q in queries:
         best = np.inf
         for _ in range(runs):
             t = time.perf_counter()
-            _, _, n = search.find_best(lib, q, classes)
+            found = best_window(lib, q, classes)
             best = min(best, time.perf_counter() - t)
         times.append(best * 1000)
-        evaluated.append(n)
+        evaluated.append(found.evaluated)
     return float(np.median(times)), float(np.mean(evaluated))
 
 
-def numpy_scan_ms(lib: Library, query: search.Query, chunk: int = 8192) -> float:
+def numpy_scan_ms(lib: Library, query: Query, chunk: int = 8192) -> float:
     """A plain vectorised scan without pruning (every window's exact cost), for scale."""
     index = lib.search_index()
-    wp = search.joint_weights(search.TABLE2_POSITION_WEIGHTS)
-    wq = search.joint_weights(search.TABLE2_ROTATION_WEIGHTS)
     t = time.perf_counter()
     for a in range(0, len(index.starts), chunk):
-        search.window_costs(lib, index.starts[a : a + chunk], query, wp, wq)
+        window_costs(lib.frames, index.starts[a : a + chunk], query, WP, WQ)
     return (time.perf_counter() - t) * 1000
 
 
-def bound_scan_ms(lib: Library, query: search.Query) -> float:
+def bound_scan_ms(lib: Library, query: Query) -> float:
     """The float32 per-window bound over every window (one vectorised pass, no pruning): the
     speed of a plain numpy scan of the whole library."""
     index = lib.search_index()
-    wp = search.joint_weights(search.TABLE2_POSITION_WEIGHTS)
-    wq = search.joint_weights(search.TABLE2_ROTATION_WEIGHTS)
-    q = search._QueryArrays(query, wp, wq)
+    q = search_index._QueryArrays(query, WP, WQ)
     cands = np.arange(len(index.starts))
+    chunk = search_index.CANDIDATE_CHUNK
     t = time.perf_counter()
-    for k in range(0, len(cands), search.CANDIDATE_CHUNK):
-        search._chunk_terms(index, cands[k : k + search.CANDIDATE_CHUNK], q, 0, index.window)
+    for k in range(0, len(cands), chunk):
+        search_index._chunk_terms(index, cands[k : k + chunk], q, 0, index.window)
     return (time.perf_counter() - t) * 1000
 
 
-def pivot_pruned(lib: Library, queries: list[search.Query]) -> float:
+def pivot_pruned(lib: Library, queries: list[Query]) -> float:
     """Mean fraction of all windows whose pivot (triangle-inequality) bound alone exceeds the best
     cost, i.e. what the pivots prune once the best is known."""
     index = lib.search_index()
-    wp = search.joint_weights(search.TABLE2_POSITION_WEIGHTS)
-    wq = search.joint_weights(search.TABLE2_ROTATION_WEIGHTS)
     cands = np.arange(len(index.starts))
     fractions = []
     for q in queries:
-        _, cost, _ = search.find_best(lib, q)
-        dq = search.window_costs(lib, index.pivots, q, wp, wq).astype(np.float32)
-        fractions.append(1.0 - len(search._pivot_candidate_filter(index, cands, dq, cost)) / len(cands))
+        cost = best_window(lib, q).cost
+        dq = window_costs(lib.frames, index.pivots, q, WP, WQ).astype(np.float32)
+        fractions.append(1.0 - len(search_index._pivot_candidate_filter(index, cands, dq, cost)) / len(cands))
     return float(np.mean(fractions))
 
 
-def reference_ms(lib: Library, query: search.Query, candidates: int = 2000) -> float:
+def reference_ms(lib: Library, query: Query, candidates: int = 2000) -> float:
     """Reference time for the whole library, from `candidates` windows timed one at a time."""
     starts = lib.search_index().starts
     t = time.perf_counter()
@@ -151,12 +164,12 @@ def reference_ms(lib: Library, query: search.Query, candidates: int = 2000) -> f
     return per_window * len(starts) * 1000
 
 
-def bench_search(report) -> None:
+def bench_search() -> None:
     """Search figures on the real library and the scaled one (see the module docstring)."""
     t = time.perf_counter()
     real = real_library()
     if real is None:
-        print(f"# search: skipped, no mocap at {MOCAP}")
+        skipped(GROUP)
         return
     report(GROUP, "real library load", time.perf_counter() - t, "s", frames=real.num_frames,
            clips=len(real.clips), cached=real.loaded_from_cache)  # fmt: skip
@@ -194,13 +207,8 @@ def bench_search(report) -> None:
             report(GROUP, f"speed-up full vs reference ({kind})", ref / full_ms, "x", **ctx)
         # Peak memory of one full search (numpy allocations, tracemalloc) and of the process.
         tracemalloc.start()
-        search.find_best(lib, make_queries(lib, 1, 0.05, 5.0, seed=3)[0])
+        best_window(lib, make_queries(lib, 1, 0.05, 5.0, seed=3)[0])
         peak = tracemalloc.get_traced_memory()[1]
         tracemalloc.stop()
         report(GROUP, "peak memory during one full search", peak / 1e6, "MB", **ctx)
     report(GROUP, "process peak RSS", resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3, "MB")
-
-
-if __name__ == "__main__":
-    bench_search(report)
-    print_table()

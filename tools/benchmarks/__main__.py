@@ -1,0 +1,47 @@
+"""Benchmarks: figures to read, never assertions. Prints one JSON line per figure and a table.
+
+    .venv/bpy-5.0/bin/python tools/bench.py                 # everything
+    .venv/bpy-5.0/bin/python tools/bench.py bvh sim         # some groups only
+    .venv/bpy-5.0/bin/python -m tools.benchmarks search     # the same, as a module
+
+Groups: bvh (parse throughput), blender (import, read_motion, write_motion in bpy), sim (ragdoll
+build, step, BC and CD windows), search (the jump search against the reference). Real mocap comes
+from ../shared/mocap (test and benchmark data only); a group that needs it is skipped with a note
+where it is absent. Each timing is the best of several runs (the least disturbed by other work on
+the machine), with the run count printed beside it.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+
+from .blender import bench_blender
+from .bvh import bench_bvh
+from .common import print_table
+from .search import bench_search
+from .sim import bench_sim
+
+GROUPS: dict[str, Callable[[], None]] = {
+    "bvh": bench_bvh,
+    "blender": bench_blender,
+    "sim": bench_sim,
+    "search": bench_search,
+}
+
+
+def main(argv: list[str]) -> int:
+    """Run the named groups (all by default) and print the table; 2 for an unknown group."""
+    chosen = argv or list(GROUPS)
+    unknown = [g for g in chosen if g not in GROUPS]
+    if unknown:
+        print(f"unknown group(s) {unknown}; choose from {list(GROUPS)}", file=sys.stderr)
+        return 2
+    for group in chosen:
+        GROUPS[group]()
+    print_table()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
