@@ -22,13 +22,14 @@ def _import_command(args: argparse.Namespace) -> int:
     bpy.ops.wm.read_factory_settings(use_empty=True)
     armature = bvh_import.import_bvh(bpy.context, args.bvh, unit=args.unit, up=args.up)
     scene = bpy.context.scene
-    action = armature.animation_data.action
+    data, action = armature.data, armature.animation_data.action
+    assert isinstance(data, bpy.types.Armature) and action is not None  # import_bvh made both
     scene.frame_start, scene.frame_end = (int(f) for f in action.frame_range)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     bpy.ops.wm.save_as_mainfile(filepath=str(args.out.resolve()), check_existing=False)
     fps = scene.render.fps / scene.render.fps_base
     print(
-        f"saved {args.out}: armature '{armature.name}' ({len(armature.data.bones)} bones), "
+        f"saved {args.out}: armature '{armature.name}' ({len(data.bones)} bones), "
         f"action '{action.name}' frames {scene.frame_start}-{scene.frame_end} at {fps:g} fps"
     )
     return 0
@@ -43,7 +44,9 @@ def _unit(text: str) -> str | float:
 
 
 def parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m reactive_anim", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(
+        prog="python -m reactive_anim", description=__doc__.splitlines()[0] if __doc__ else None
+    )
     commands = p.add_subparsers(dest="command", required=True)
     imp = commands.add_parser("import", help="import a BVH into a new scene and save it as a .blend")
     imp.add_argument("bvh", type=Path)

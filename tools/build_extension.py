@@ -207,10 +207,24 @@ def pip_download(platform: Platform, requirements: list[str], constraints: list[
         handle.write("\n".join(constraints) + "\n")
     try:
         command = [
-            sys.executable, "-m", "pip", "download", "--disable-pip-version-check", "--progress-bar", "off",
-            "--only-binary=:all:", "--python-version", PYTHON_VERSION, "--implementation", "cp",
+            sys.executable,
+            "-m",
+            "pip",
+            "download",
+            "--disable-pip-version-check",
+            "--progress-bar",
+            "off",
+            "--only-binary=:all:",
+            "--python-version",
+            PYTHON_VERSION,
+            "--implementation",
+            "cp",
             *(arg for tag in platform.pip_tags for arg in ("--platform", tag)),
-            "--constraint", handle.name, "--dest", str(dest), *requirements,
+            "--constraint",
+            handle.name,
+            "--dest",
+            str(dest),
+            *requirements,
         ]
         print(f"[{platform.name}] pip download {' '.join(requirements)}", flush=True)
         completed = subprocess.run(command, capture_output=True, text=True)
@@ -308,9 +322,7 @@ def run_blender_ext(blender_ext: Path, *args: str) -> str:
     """Run one blender_ext.py command; its output is the verdict, so it is returned (and failure stops)."""
     tags = valid_tags_file(blender_ext)
     tag_args = ["--valid-tags", str(tags)] if tags else []
-    completed = subprocess.run(
-        [sys.executable, str(blender_ext), *args, *tag_args], capture_output=True, text=True
-    )
+    completed = subprocess.run([sys.executable, str(blender_ext), *args, *tag_args], capture_output=True, text=True)
     output = (completed.stdout + completed.stderr).strip()
     if completed.returncode != 0:
         raise SystemExit(f"build_extension: blender_ext {args[0]} failed:\n{output}")
@@ -341,16 +353,27 @@ def check_zip_wheels(zip_file: Path, expected: list[str]) -> None:
         raise SystemExit(f"build_extension: {zip_file.name} holds wheels {present}, expected {sorted(expected)}")
 
 
-def build_platform(platform: Platform, manifest: dict, blender_ext: Path, output_dir: Path, cache_root: Path,
-                   refresh: bool) -> tuple[Path, list[Path]]:
+def build_platform(
+    platform: Platform, manifest: dict, blender_ext: Path, output_dir: Path, cache_root: Path, refresh: bool
+) -> tuple[Path, list[Path]]:
     """Build and validate one platform's zip; returns it and the wheels it bundles."""
     wheels = platform_wheels(platform, cache_root, refresh)
     output_dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=f"reactive_anim_stage_{platform.name}_") as temp:
         stage_dir = Path(temp) / "stage"
         entries = stage(stage_dir, platform.name, wheels)
-        print(run_blender_ext(blender_ext, "build", "--source-dir", str(stage_dir),
-                              "--output-dir", str(output_dir), "--split-platforms"), flush=True)
+        print(
+            run_blender_ext(
+                blender_ext,
+                "build",
+                "--source-dir",
+                str(stage_dir),
+                "--output-dir",
+                str(output_dir),
+                "--split-platforms",
+            ),
+            flush=True,
+        )
     zip_file = zip_path(output_dir, manifest, platform.name)
     check_zip_wheels(zip_file, entries)
     print(f"[{platform.name}] validate: {run_blender_ext(blender_ext, 'validate', str(zip_file))}", flush=True)
@@ -367,8 +390,13 @@ def update_source_manifest(all_wheels: list[Path], platforms: list[str]) -> None
         print(f"updated {MANIFEST.relative_to(REPO)}: {len(entries)} wheels, platforms {platforms}")
 
 
-def build(platforms: list[str], blender_ext: str | None = None, output_dir: Path = DEFAULT_DIST,
-          cache_root: Path = DEFAULT_CACHE, refresh: bool = False) -> dict[str, Path]:
+def build(
+    platforms: list[str],
+    blender_ext: str | None = None,
+    output_dir: Path = DEFAULT_DIST,
+    cache_root: Path = DEFAULT_CACHE,
+    refresh: bool = False,
+) -> dict[str, Path]:
     """Build the named platforms' zips; a build of every platform also refreshes the repo manifest."""
     manifest = read_manifest()
     tool = find_blender_ext(blender_ext)
@@ -387,9 +415,13 @@ def build(platforms: list[str], blender_ext: str | None = None, output_dir: Path
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n", 1)[0])
-    parser.add_argument("--platform", action="append", choices=sorted(PLATFORMS),
-                        help="build only this platform (repeatable); default: all")
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n", 1)[0] if __doc__ else None)
+    parser.add_argument(
+        "--platform",
+        action="append",
+        choices=sorted(PLATFORMS),
+        help="build only this platform (repeatable); default: all",
+    )
     parser.add_argument("--blender-ext", help="path of blender_ext.py (default: from this interpreter's bpy)")
     parser.add_argument("--output-dir", type=Path, default=DEFAULT_DIST)
     parser.add_argument("--cache-dir", type=Path, default=DEFAULT_CACHE, help="wheel cache root")

@@ -17,8 +17,9 @@ Blender has three live action APIs; they differ only in how F-curves are created
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from typing import Any, cast
 
 import bpy
 import numpy as np
@@ -30,13 +31,26 @@ from ..core.skeleton import Motion, Skeleton
 LOCAL_POS_TOLERANCE = 1e-5  # metres (float32 pose matrices); below this, joint translations equal the rest offsets
 
 
+def _since_4_4(blender_object: object) -> Any:
+    """The object untyped, to reach the layered-action API of Blender 4.4+ (slots, layers,
+    action_slot): callers detect the feature at run time, and the type stubs describe 4.2."""
+    return blender_object
+
+
+def _armature_data(armature: bpy.types.Object) -> bpy.types.Armature:
+    """The object's armature data; any other kind of object is refused by name."""
+    if not isinstance(armature.data, bpy.types.Armature):
+        raise SkeletonError(f"object '{armature.name}' is not an armature")
+    return armature.data
+
+
 # ---------------------------------------------------------------------------------------------
 # Armature rest pose as a core Skeleton
 
 
 def _root_bone(armature: bpy.types.Object) -> bpy.types.Bone:
     """The root bone with the largest subtree; other root bones (props, IK targets) are ignored."""
-    roots = [b for b in armature.data.bones if b.parent is None]
+    roots = [b for b in _armature_data(armature).bones if b.parent is None]
     if not roots:
         raise SkeletonError(f"armature '{armature.name}' has no bones")
     return max(roots, key=lambda b: len(b.children_recursive))
@@ -57,7 +71,9 @@ def _object_transform(armature: bpy.types.Object) -> tuple[np.ndarray, float, np
     m = np.array(armature.matrix_world)
     scales = np.linalg.norm(m[:3, :3], axis=0)
     if not np.allclose(scales, scales[0], rtol=1e-4):
-        raise SkeletonError(f"armature '{armature.name}' has a non-uniform object scale {tuple(scales.round(4))}; apply it first")
+        raise SkeletonError(
+            f"armature '{armature.name}' has a non-uniform object scale {tuple(scales.round(4))}; apply it first"
+        )
     return quat.from_matrix(m[:3, :3] / scales[0]), float(scales[0]), m[:3, 3]
 
 
@@ -79,7 +95,8 @@ def armature_skeleton(armature: bpy.types.Object) -> Skeleton:
     """The armature's rest pose as a core Skeleton (world-axis offsets, metres)."""
     bones = _bones_in_order(armature)
     index = {b.name: i for i, b in enumerate(bones)}
-    parents = np.array([-1] + [index[b.parent.name] for b in bones[1:]])
+    # _bones_in_order reached every bone after the root through its parent
+    parents = np.array([-1] + [index[cast(bpy.types.Bone, b.parent).name] for b in bones[1:]])
     heads, _ = _rest_frames(armature, bones)
     offsets = heads.copy()
     offsets[1:] -= heads[parents[1:]]
@@ -97,7 +114,7 @@ def armature_skeleton(armature: bpy.types.Object) -> Skeleton:
 
 
 @contextmanager
-def _action_assigned(armature: bpy.types.Object, action: bpy.types.Action | None):
+def _action_assigned(armature: bpy.types.Object, action: bpy.types.Action | None) -> Iterator[bpy.types.Action | None]:
     """Temporarily play `action` on the armature (NLA off), restoring everything afterwards."""
     scene = bpy.context.scene
     frame = scene.frame_current, scene.frame_subframe
@@ -122,18 +139,18 @@ def _action_assigned(armature: bpy.types.Object, action: bpy.types.Action | None
         else:
             adt.action = saved[0]
             if saved[0] is not None and hasattr(adt, "action_slot") and saved[1] is not None:
-                adt.action_slot = saved[1]
+                _since_4_4(adt).action_slot = saved[1]
             adt.use_nla = saved[2]
         scene.frame_set(frame[0], subframe=frame[1])
 
 
 def _ensure_slot(adt: bpy.types.AnimData, action: bpy.types.Action) -> None:
     """Layered actions animate nothing until a slot is assigned; pick the first object slot."""
-    if not hasattr(adt, "action_slot") or adt.action_slot is not None:
+    if not hasattr(adt, "action_slot") or _since_4_4(adt).action_slot is not None:
         return
-    for slot in action.slots:
+    for slot in _since_4_4(action).slots:
         if slot.target_id_type in {"OBJECT", "UNSPECIFIED"}:
-            adt.action_slot = slot
+            _since_4_4(adt).action_slot = slot
             return
 
 
@@ -153,14 +170,16 @@ def read_motion(
         if frame_range is None:
             if playing is None:
                 raise SkeletonError(f"armature '{armature.name}' has no action to read")
-            frame_range = (int(round(playing.frame_range[0])), int(round(playing.frame_range[1])))
+            frame_range = (round(playing.frame_range[0]), round(playing.frame_range[1]))
         matrices = _sample_pose_matrices(armature, bones, frame_range)
     scene = bpy.context.scene
     fps = scene.render.fps / scene.render.fps_base
     return _motion_from_matrices(armature, skeleton, bones, matrices, fps)
 
 
-def _sample_pose_matrices(armature: bpy.types.Object, bones: list[bpy.types.Bone], frame_range: tuple[int, int]) -> np.ndarray:
+def _sample_pose_matrices(
+    armature: bpy.types.Object, bones: list[bpy.types.Bone], frame_range: tuple[int, int]
+) -> np.ndarray:
     """Armature-space pose matrices (T, J, 4, 4), one bulk read per frame."""
     scene = bpy.context.scene
     pose_bones = armature.pose.bones
@@ -170,8 +189,8 @@ def _sample_pose_matrices(armature: bpy.types.Object, bones: list[bpy.types.Bone
     out = np.empty((last - first + 1, len(bones), 4, 4))
     for t, frame in enumerate(range(first, last + 1)):
         scene.frame_set(frame)
-        pose_bones.foreach_get("matrix", buffer)
-        # foreach_get returns each matrix column-major
+        # foreach_get returns each matrix column-major (ignore: an ndarray is a buffer, see _set_keys)
+        pose_bones.foreach_get("matrix", buffer)  # pyright: ignore[reportArgumentType]
         out[t] = buffer.reshape(-1, 4, 4).transpose(0, 2, 1)[order]
     return out
 
@@ -221,7 +240,9 @@ def write_motion(armature: bpy.types.Object, motion: Motion, name: str, frame_st
     rest_offsets[1:] -= heads[joints][motion.skeleton.parents[1:]]
     translation = motion.joint_offsets().copy()
     translation[:, 0] = motion.root_pos
-    keyed_loc = [0] + ([j for j in range(1, len(joints)) if not bones[joints[j]].use_connect] if motion.local_pos is not None else [])
+    keyed_loc = [0] + (
+        [j for j in range(1, len(joints)) if not bones[joints[j]].use_connect] if motion.local_pos is not None else []
+    )
     basis_loc = quat.rotate(quat.conj(b[keyed_loc]), translation[:, keyed_loc] - rest_offsets[keyed_loc]) / scale
 
     action = bpy.data.actions.new(name)
@@ -246,9 +267,7 @@ def _joint_bones(armature: bpy.types.Object, skeleton: Skeleton, bones: list[bpy
     index = {b.name: i for i, b in enumerate(bones)}
     missing = [n for n in skeleton.names if n not in index]
     if missing:
-        raise SkeletonError(
-            f"armature '{armature.name}' lacks bones the motion animates: {', '.join(missing)}"
-        )
+        raise SkeletonError(f"armature '{armature.name}' lacks bones the motion animates: {', '.join(missing)}")
     for j in range(1, skeleton.num_joints):
         bone = bones[index[skeleton.names[j]]]
         expected = skeleton.names[skeleton.parents[j]]
@@ -264,17 +283,23 @@ def _set_keys(fcurve: bpy.types.FCurve, frames: np.ndarray, values: np.ndarray) 
     """All keys of one curve in two bulk calls; linear interpolation (one key per frame)."""
     points = fcurve.keyframe_points
     points.add(len(frames))
-    points.foreach_set("co", np.column_stack([frames, values]).astype(np.float32).ravel())
-    points.foreach_set("interpolation", np.ones(len(frames), dtype=np.int32))  # 1 = LINEAR
+    co = np.column_stack([frames, values]).astype(np.float32).ravel()
+    linear = np.ones(len(frames), dtype=np.int32)  # 1 = LINEAR
+    # An ndarray is a buffer, but numpy 1.26's stubs declare __buffer__ only for Python 3.12+.
+    points.foreach_set("co", co)  # pyright: ignore[reportArgumentType]
+    points.foreach_set("interpolation", linear)  # pyright: ignore[reportArgumentType]
     fcurve.update()
 
 
-def _fcurve_factory(action: bpy.types.Action, armature: bpy.types.Object) -> Callable[[str, int, str], bpy.types.FCurve]:
+def _fcurve_factory(
+    action: bpy.types.Action, armature: bpy.types.Object
+) -> Callable[[str, int, str], bpy.types.FCurve]:
     """new_fcurve(data_path, index, group) for whichever action API this Blender has."""
     if not hasattr(action, "layers"):  # 4.2: legacy actions
         return lambda path, index, group: action.fcurves.new(path, index=index, action_group=group)
-    slot = action.slots.new(id_type="OBJECT", name=armature.name)
-    strip = action.layers.new("Layer").strips.new(type="KEYFRAME")
+    layered = _since_4_4(action)
+    slot = layered.slots.new(id_type="OBJECT", name=armature.name)
+    strip = layered.layers.new("Layer").strips.new(type="KEYFRAME")
     channelbag = strip.channelbag(slot, ensure=True)
     if "group_name" in channelbag.fcurves.bl_rna.functions["new"].parameters:  # 5.0 and newer
         return lambda path, index, group: channelbag.fcurves.new(path, index=index, group_name=group)

@@ -29,7 +29,8 @@ def import_bvh(
     Returns the new armature object. Its action starts at frame 1 (file frame 0) and keeps a fake
     user, so it survives being unassigned by a bake.
     """
-    from io_anim_bvh import import_bvh as blender_importer
+    # Blender's bundled BVH add-on (scripts/addons_core); the bpy type stubs do not cover add-ons.
+    from io_anim_bvh import import_bvh as blender_importer  # pyright: ignore[reportMissingImports]
 
     data = bvh.parse_bvh(filepath)
     scale = bvh.unit_scale(data, unit)
@@ -54,9 +55,11 @@ def import_bvh(
     if result != {"FINISHED"} or len(created) != 1:
         raise BVHError("Blender's BVH importer did not create an armature", filepath)
     armature = created[0]
+    action = armature.animation_data.action if armature.animation_data else None
+    if armature.data is None or action is None:
+        raise BVHError("Blender's BVH importer did not create an animated armature", filepath)
     if name:
         armature.name = name
         armature.data.name = name
-    action = armature.animation_data.action
     action.use_fake_user = True
     return armature

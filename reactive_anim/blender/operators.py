@@ -1,6 +1,12 @@
 """Operators. Each names its targets in properties, so it runs the same from a button, a script or headless."""
 
+# Blender declares operator properties as annotations holding calls (`unit: EnumProperty(...)`),
+# which are not type expressions; pyright is told so for this file only.
+# pyright: reportInvalidTypeForm=false
+
 from __future__ import annotations
+
+from typing import TYPE_CHECKING
 
 import bpy
 from bpy.props import EnumProperty, StringProperty
@@ -8,6 +14,9 @@ from bpy_extras.io_utils import ImportHelper
 
 from ..core.errors import ReactiveAnimError
 from . import bvh_import
+
+if TYPE_CHECKING:
+    from bpy._typing.rna_enums import OperatorReturnItems  # fake-bpy-module's name for the result set
 
 UNIT_ITEMS = (
     ("auto", "Automatic", "Guess from the skeleton's size (centimetres, inches, metres, CMU units)"),
@@ -34,9 +43,14 @@ class REACTIVE_ANIM_OT_import_bvh(bpy.types.Operator, ImportHelper):
         items=(("Y", "Y up", "Most BVH files"), ("Z", "Z up", "Files exported Z up")),
         default="Y",
     )
-    armature_name: StringProperty(name="Armature Name", description="Name for the new armature (default: the file's name)")
+    armature_name: StringProperty(
+        name="Armature Name", description="Name for the new armature (default: the file's name)"
+    )
 
-    def execute(self, context):
+    if TYPE_CHECKING:
+        filepath: str  # ImportHelper's property (the bpy type stubs leave it out)
+
+    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
         try:
             armature = bvh_import.import_bvh(
                 context, self.filepath, unit=self.unit, up=self.up_axis, name=self.armature_name
@@ -44,6 +58,7 @@ class REACTIVE_ANIM_OT_import_bvh(bpy.types.Operator, ImportHelper):
         except ReactiveAnimError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        action = armature.animation_data.action
-        self.report({"INFO"}, f"Imported '{armature.name}' with action '{action.name}' ({len(armature.data.bones)} bones)")
+        data, action = armature.data, armature.animation_data.action
+        assert isinstance(data, bpy.types.Armature) and action is not None  # import_bvh made both
+        self.report({"INFO"}, f"Imported '{armature.name}' with action '{action.name}' ({len(data.bones)} bones)")
         return {"FINISHED"}

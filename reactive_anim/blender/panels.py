@@ -14,6 +14,6 @@ class REACTIVE_ANIM_PT_main(bpy.types.Panel):
     bl_region_type = "UI"
     bl_category = "Reactions"
 
-    def draw(self, context) -> None:
+    def draw(self, context: bpy.types.Context) -> None:
         col = self.layout.column(align=True)
         col.operator(operators.REACTIVE_ANIM_OT_import_bvh.bl_idname, icon="IMPORT")

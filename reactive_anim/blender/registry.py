@@ -12,7 +12,7 @@ CLASSES = (
 )
 
 
-def _menu_import(self, context) -> None:
+def _menu_import(self: bpy.types.Menu, context: bpy.types.Context) -> None:
     self.layout.operator(operators.REACTIVE_ANIM_OT_import_bvh.bl_idname, text="Mocap for Reactions (.bvh)")
 
 

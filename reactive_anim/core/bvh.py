@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import re
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -124,7 +125,7 @@ def _number(token: str, label: str, line: int, what: str) -> float:
 class _Tokens:
     """The hierarchy's tokens with their line numbers, consumed front to back."""
 
-    def __init__(self, lines: list[str], label: str, end_line: int):
+    def __init__(self, lines: list[str], label: str, end_line: int) -> None:
         self.items = [(tok, n) for n, text in enumerate(lines, 1) for tok in text.split()]
         self.pos = 0
         self.label = label
@@ -150,7 +151,7 @@ class _Tokens:
 
 
 class _HierarchyParser:
-    def __init__(self, tokens: _Tokens):
+    def __init__(self, tokens: _Tokens) -> None:
         self.t = tokens
         self.label = tokens.label
         self.names: list[str] = []
@@ -233,7 +234,9 @@ class _HierarchyParser:
             tok, tok_line = self.t.peek()
             if tok is None:
                 raise BVHError(
-                    f"unbalanced braces: joint '{name}' opened at line {open_line} is never closed", self.label, tok_line
+                    f"unbalanced braces: joint '{name}' opened at line {open_line} is never closed",
+                    self.label,
+                    tok_line,
                 )
             self.t.pos += 1
             if tok == "}":
@@ -313,7 +316,8 @@ def _motion_values(lines: list[str], first: int, frames: int, columns: int, fram
             if len(numbered) < frames:
                 last = numbered[-1][0] if numbered else frames_line
                 raise BVHError(
-                    f"the motion is truncated: 'Frames: {frames}' (line {frames_line}) but only {len(numbered)} frame lines",
+                    f"the motion is truncated: 'Frames: {frames}' (line {frames_line}) "
+                    f"but only {len(numbered)} frame lines",
                     label,
                     last,
                 )
@@ -399,7 +403,7 @@ def unit_scale(data: BVHData, unit: str | float = "auto") -> float:
         if unit not in UNITS:
             raise BVHError(f"unknown unit '{unit}'; use one of {', '.join(UNITS)} or a number", data.path)
         return UNITS[unit]
-    extent = Skeleton(data.names, data.parents, data.offsets, dict(data.end_sites)).rest_extent()
+    extent = Skeleton(data.names, np.asarray(data.parents), data.offsets, dict(data.end_sites)).rest_extent()
     if extent <= 0:
         raise BVHError("every OFFSET is zero, so the units cannot be guessed; give the unit", data.path)
     return min(UNITS.values(), key=lambda s: abs(np.log(extent * s / TYPICAL_HEIGHT_M)))
@@ -430,7 +434,7 @@ def to_motion(data: BVHData, unit: str | float = "auto", up: str = "Y") -> Motio
     local_rot = quat.mul(quat.mul(axis_q, local_rot), quat.conj(axis_q))
     positions = quat.rotate(axis_q, positions)
     end_sites = {j: quat.rotate(axis_q, off * scale) for j, off in data.end_sites.items()}
-    skeleton = Skeleton(data.names, data.parents, quat.rotate(axis_q, offsets), end_sites)
+    skeleton = Skeleton(data.names, np.asarray(data.parents), quat.rotate(axis_q, offsets), end_sites)
     return Motion(
         skeleton=skeleton,
         fps=1.0 / data.frame_time,
@@ -482,15 +486,27 @@ def format_bvh(
     return "\n".join(lines) + "\n"
 
 
-def _hierarchy_lines(motion: Motion, joint: int, order: str, file_vectors, number: str, lines: list[str], depth: int = 0) -> None:
+def _hierarchy_lines(
+    motion: Motion,
+    joint: int,
+    order: str,
+    file_vectors: Callable[[np.ndarray], np.ndarray],
+    number: str,
+    lines: list[str],
+    depth: int = 0,
+) -> None:
     """Append one joint's block (and its children's, recursively) to `lines`."""
     sk = motion.skeleton
     pad = "\t" * depth
     offset = " ".join(number % v for v in file_vectors(sk.offsets[joint]))
     rotations = " ".join(f"{c}rotation" for c in order)
     channels = f"6 Xposition Yposition Zposition {rotations}" if _writes_position(motion, joint) else f"3 {rotations}"
-    lines += [f"{pad}{'ROOT' if joint == 0 else 'JOINT'} {sk.names[joint]}", f"{pad}{{", f"{pad}\tOFFSET {offset}",
-              f"{pad}\tCHANNELS {channels}"]
+    lines += [
+        f"{pad}{'ROOT' if joint == 0 else 'JOINT'} {sk.names[joint]}",
+        f"{pad}{{",
+        f"{pad}\tOFFSET {offset}",
+        f"{pad}\tCHANNELS {channels}",
+    ]
     for child in sk.children(joint):
         _hierarchy_lines(motion, child, order, file_vectors, number, lines, depth + 1)
     if joint in sk.end_sites:
@@ -503,7 +519,9 @@ def _writes_position(motion: Motion, joint: int) -> bool:
     return joint == 0 or motion.local_pos is not None
 
 
-def _motion_block(motion: Motion, euler_degrees: np.ndarray, file_vectors) -> np.ndarray:
+def _motion_block(
+    motion: Motion, euler_degrees: np.ndarray, file_vectors: Callable[[np.ndarray], np.ndarray]
+) -> np.ndarray:
     """(T, channels) values in the hierarchy's channel order: per joint [positions] + rotations."""
     translations = file_vectors(motion.joint_offsets())
     translations[:, 0] = file_vectors(motion.root_pos)

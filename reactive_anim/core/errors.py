@@ -17,7 +17,7 @@ class ReactiveAnimError(Exception):
 class BVHError(ReactiveAnimError):
     """A BVH file that cannot be read; carries the file and the 1-based line at fault."""
 
-    def __init__(self, message: str, path: str | Path | None = None, line: int | None = None):
+    def __init__(self, message: str, path: str | Path | None = None, line: int | None = None) -> None:
         self.reason = message
         self.path = str(path) if path is not None else None
         self.line = line
@@ -40,7 +40,7 @@ class ImpactError(ReactiveAnimError):
     a direction or with a bad strength; the message names the impact."""
 
 
-class Cancelled(ReactiveAnimError):
+class Cancelled(ReactiveAnimError):  # noqa: N818  (a stop the caller asked for, not a failure)
     """A bake stopped because the caller asked it to (no result is returned)."""
 
 

@@ -52,9 +52,7 @@ class Impact:
                 f"impact on '{self.bone}': strength must be a finite impulse >= 0 N·s, got {self.strength!r}"
             )
         if self.reaction is not None and (not isinstance(self.reaction, str) or not self.reaction):
-            raise ImpactError(
-                f"impact on '{self.bone}': reaction must be a class slug or None, got {self.reaction!r}"
-            )
+            raise ImpactError(f"impact on '{self.bone}': reaction must be a class slug or None, got {self.reaction!r}")
         object.__setattr__(self, "frame", frame)
         object.__setattr__(self, "direction", tuple(float(v) for v in direction / length))
         object.__setattr__(self, "strength", strength)

@@ -8,6 +8,7 @@ intrinsic rotations applied left to right, and vectors are column vectors.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 AXES = "XYZ"
 _EPS = 1e-12
@@ -20,14 +21,14 @@ def identity(shape: tuple[int, ...] = ()) -> np.ndarray:
     return q
 
 
-def normalize(q: np.ndarray) -> np.ndarray:
+def normalize(q: ArrayLike) -> np.ndarray:
     """Unit quaternions; a zero quaternion stays zero rather than becoming NaN."""
     q = np.asarray(q, dtype=float)
     n = np.linalg.norm(q, axis=-1, keepdims=True)
     return q / np.maximum(n, _EPS)
 
 
-def mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def mul(a: ArrayLike, b: ArrayLike) -> np.ndarray:
     """Hamilton product a*b (apply b first, then a), broadcast over leading axes."""
     aw, ax, ay, az = np.moveaxis(np.asarray(a, dtype=float), -1, 0)
     bw, bx, by, bz = np.moveaxis(np.asarray(b, dtype=float), -1, 0)
@@ -42,13 +43,13 @@ def mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     )
 
 
-def conj(q: np.ndarray) -> np.ndarray:
+def conj(q: ArrayLike) -> np.ndarray:
     """Conjugate, the inverse of a unit quaternion."""
     q = np.asarray(q, dtype=float)
     return q * np.array([1.0, -1.0, -1.0, -1.0])
 
 
-def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+def rotate(q: ArrayLike, v: ArrayLike) -> np.ndarray:
     """Rotate vectors `(..., 3)` by unit quaternions `(..., 4)`."""
     q = np.asarray(q, dtype=float)
     v = np.asarray(v, dtype=float)
@@ -58,7 +59,7 @@ def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     return v + w * t + np.cross(u, t)
 
 
-def from_axis_angle(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+def from_axis_angle(axis: ArrayLike, angle: ArrayLike) -> np.ndarray:
     """Rotation by `angle` radians `(...)` about unit `axis` `(..., 3)`."""
     axis = np.asarray(axis, dtype=float)
     half = 0.5 * np.asarray(angle, dtype=float)[..., None]
@@ -72,7 +73,7 @@ def _axis_index(order: str) -> list[int]:
     return idx
 
 
-def from_euler(angles: np.ndarray, order: str) -> np.ndarray:
+def from_euler(angles: ArrayLike, order: str) -> np.ndarray:
     """Quaternions from Euler angles in radians `(..., len(order))`, composed left to right.
 
     `order` may name one to three distinct axes (a BVH joint may animate fewer than three).
@@ -86,7 +87,7 @@ def from_euler(angles: np.ndarray, order: str) -> np.ndarray:
     return q
 
 
-def to_euler(q: np.ndarray, order: str) -> np.ndarray:
+def to_euler(q: ArrayLike, order: str) -> np.ndarray:
     """Euler angles in radians `(..., 3)` for a permutation of XYZ, inverse of `from_euler`.
 
     The last angle is taken from what the first two leave over, so the three angles always
@@ -105,7 +106,7 @@ def to_euler(q: np.ndarray, order: str) -> np.ndarray:
     return np.stack([first, middle, last], axis=-1)
 
 
-def to_matrix(q: np.ndarray) -> np.ndarray:
+def to_matrix(q: ArrayLike) -> np.ndarray:
     """Rotation matrices `(..., 3, 3)` of unit quaternions."""
     w, x, y, z = np.moveaxis(normalize(q), -1, 0)
     return np.stack(
@@ -118,34 +119,37 @@ def to_matrix(q: np.ndarray) -> np.ndarray:
     )
 
 
-def from_matrix(m: np.ndarray) -> np.ndarray:
+def from_matrix(m: ArrayLike) -> np.ndarray:
     """Unit quaternions (w >= 0) of rotation matrices `(..., 3, 3)`, stable for every angle."""
     m = np.asarray(m, dtype=float)
-    trace = m[..., 0, 0] + m[..., 1, 1] + m[..., 2, 2]
+    m00, m01, m02 = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2]
+    m10, m11, m12 = m[..., 1, 0], m[..., 1, 1], m[..., 1, 2]
+    m20, m21, m22 = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]
+    trace = m00 + m11 + m22
     # Four candidate formulas; use the one with the largest pivot for numerical stability.
     cands = np.stack(
         [
-            np.stack([1 + trace, m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]], -1),
-            np.stack([m[..., 2, 1] - m[..., 1, 2], 1 + m[..., 0, 0] - m[..., 1, 1] - m[..., 2, 2], m[..., 0, 1] + m[..., 1, 0], m[..., 0, 2] + m[..., 2, 0]], -1),
-            np.stack([m[..., 0, 2] - m[..., 2, 0], m[..., 0, 1] + m[..., 1, 0], 1 - m[..., 0, 0] + m[..., 1, 1] - m[..., 2, 2], m[..., 1, 2] + m[..., 2, 1]], -1),
-            np.stack([m[..., 1, 0] - m[..., 0, 1], m[..., 0, 2] + m[..., 2, 0], m[..., 1, 2] + m[..., 2, 1], 1 - m[..., 0, 0] - m[..., 1, 1] + m[..., 2, 2]], -1),
+            np.stack([1 + trace, m21 - m12, m02 - m20, m10 - m01], -1),
+            np.stack([m21 - m12, 1 + m00 - m11 - m22, m01 + m10, m02 + m20], -1),
+            np.stack([m02 - m20, m01 + m10, 1 - m00 + m11 - m22, m12 + m21], -1),
+            np.stack([m10 - m01, m02 + m20, m12 + m21, 1 - m00 - m11 + m22], -1),
         ],
         axis=-2,
     )
-    pivots = np.stack([trace, m[..., 0, 0], m[..., 1, 1], m[..., 2, 2]], -1)
+    pivots = np.stack([trace, m00, m11, m22], -1)
     best = np.argmax(pivots, axis=-1)
     q = np.take_along_axis(cands, best[..., None, None], axis=-2)[..., 0, :]
     q = normalize(q)
     return np.where(q[..., :1] < 0, -q, q)
 
 
-def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def angle_between(a: ArrayLike, b: ArrayLike) -> np.ndarray:
     """Rotation angle in radians of a^-1 b, in [0, pi]; q and -q count as the same rotation."""
     d = mul(conj(a), b)
     return 2.0 * np.arctan2(np.linalg.norm(d[..., 1:], axis=-1), np.abs(d[..., 0]))
 
 
-def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
+def slerp(a: ArrayLike, b: ArrayLike, t: ArrayLike) -> np.ndarray:
     """Spherical interpolation along the shorter arc; `t` broadcasts against `(...)`."""
     a = normalize(a)
     b = normalize(b)
@@ -162,7 +166,7 @@ def slerp(a: np.ndarray, b: np.ndarray, t: np.ndarray) -> np.ndarray:
     return normalize(wa * a + wb * b)
 
 
-def make_continuous(q: np.ndarray) -> np.ndarray:
+def make_continuous(q: ArrayLike) -> np.ndarray:
     """Flip signs along axis 0 (time) so consecutive quaternions lie in the same hemisphere.
 
     Keyframe curves interpolate components linearly; without this a q / -q jump would make a bone

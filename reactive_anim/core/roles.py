@@ -48,6 +48,7 @@ moves the waist, back and neck searches with it).
 
 from __future__ import annotations
 
+import itertools
 import re
 from dataclasses import dataclass
 
@@ -108,7 +109,7 @@ def read_joint_name(name: str) -> JointName:
     if words and words[0] not in _SIDE_WORDS:  # joined spellings such as "lefthand"
         for side_word in ("left", "right"):
             if words[0].startswith(side_word):
-                words[:1] = [side_word, words[0][len(side_word):]]
+                words[:1] = [side_word, words[0][len(side_word) :]]
     sides = {_SIDE_WORDS[w] for w in words if w in _SIDE_WORDS}
     side = sides.pop() if len(sides) == 1 else None
     return JointName(side, tuple(w for w in words if w not in _SIDE_WORDS))
@@ -237,7 +238,7 @@ def _spine_with_bones(skeleton: Skeleton, roles: dict[str, int]) -> list[int]:
         return []
     path = _path_down(skeleton, roles["pelvis"], roles["head"]) or []
     lengths = _bone_lengths(skeleton)
-    return [j for j, above in zip(path, path[1:]) if lengths[above] > 0]
+    return [j for j, above in itertools.pairwise(path) if lengths[above] > 0]
 
 
 def _find_chest(skeleton: Skeleton, roles: dict[str, int], spine: list[int]) -> None:

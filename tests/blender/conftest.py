@@ -11,10 +11,10 @@ import tempfile
 
 os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="reactive_anim_test_blender_"))
 
-import bpy  # noqa: E402  (must come after the environment variable)
-import pytest  # noqa: E402
+import bpy  # must come after the environment variable
+import pytest
 
-import reactive_anim  # noqa: E402
+import reactive_anim
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -50,7 +50,9 @@ def test_core_fk_matches_blender_import(relative):
     assert read.fps == pytest.approx(core.fps, rel=1e-4)
     order = [read.skeleton.names.index(n) for n in core.skeleton.names]
     error = np.linalg.norm(read.global_positions()[:, order] - core.global_positions(), axis=-1)
-    assert error.max() < 1e-3, f"max {error.max() * 1000:.3f} mm at frame {np.unravel_index(error.argmax(), error.shape)}"
+    assert error.max() < 1e-3, (
+        f"max {error.max() * 1000:.3f} mm at frame {np.unravel_index(error.argmax(), error.shape)}"
+    )
 
 
 def test_write_then_read_round_trip_leaves_source_untouched():
@@ -81,8 +83,11 @@ def _rotated_scaled_rig() -> bpy.types.Object:
     bpy.context.scene.collection.objects.link(rig)
     bpy.context.view_layer.objects.active = rig
     bpy.ops.object.mode_set(mode="EDIT")
-    specs = [("root", None, (0, 0, 1), (0, 0.1, 1.3), 0.3), ("arm", "root", (0, 0.1, 1.3), (0.4, 0.2, 1.4), 1.1),
-             ("hand", "arm", (0.45, 0.2, 1.4), (0.6, 0.1, 1.35), -0.7)]
+    specs = [
+        ("root", None, (0, 0, 1), (0, 0.1, 1.3), 0.3),
+        ("arm", "root", (0, 0.1, 1.3), (0.4, 0.2, 1.4), 1.1),
+        ("hand", "arm", (0.45, 0.2, 1.4), (0.6, 0.1, 1.35), -0.7),
+    ]
     for name, parent, head, tail, roll in specs:
         bone = data.edit_bones.new(name)
         bone.head, bone.tail, bone.roll = head, tail, roll

@@ -59,7 +59,7 @@ Frame Time: 0.0333333
 """
 
 # Runs inside the subprocess: install, inspect, use, uninstall; one JSON line of findings.
-INSTALL_SCRIPT = r'''
+INSTALL_SCRIPT = r"""
 import json
 import os
 import sys
@@ -122,7 +122,7 @@ try:
 except Exception:
     found["error"] = traceback.format_exc()
 print("RESULT_JSON " + json.dumps(found), flush=True)
-'''
+"""
 
 
 def _load_build_tool() -> ModuleType:
@@ -178,13 +178,21 @@ def installed(extension_zip: Path, tmp_path_factory: pytest.TempPathFactory) -> 
     (work / "tiny.bvh").write_text(TINY_BVH)
     user_resources = work / "blender_user"
     user_resources.mkdir()
-    args = {"runtime": str(_blender_runtime(work / "runtime")), "zip": str(extension_zip),
-            "bvh": str(work / "tiny.bvh"), "addon_module": ADDON_MODULE}
+    args = {
+        "runtime": str(_blender_runtime(work / "runtime")),
+        "zip": str(extension_zip),
+        "bvh": str(work / "tiny.bvh"),
+        "addon_module": ADDON_MODULE,
+    }
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME", "PYTHONSTARTUP")}
     env["BLENDER_USER_RESOURCES"] = str(user_resources)
     completed = subprocess.run(
         [sys.executable, "-S", str(work / "install.py"), json.dumps(args)],
-        cwd=work, env=env, capture_output=True, text=True, timeout=SUBPROCESS_TIMEOUT_S,
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=SUBPROCESS_TIMEOUT_S,
     )
     lines = [line for line in completed.stdout.splitlines() if line.startswith("RESULT_JSON ")]
     output = f"(exit {completed.returncode}):\n{completed.stdout}\n{completed.stderr}"

@@ -30,7 +30,9 @@ def test_import_builds_armature_with_quaternion_action_at_file_rate():
     assert 1.0 < max(h.z for h in heads) - min(h.z for h in heads) < 2.1
 
 
-@pytest.mark.parametrize("name", ["truncated_motion_last_line.bvh", "unknown_channel.bvh", "unbalanced_extra_brace.bvh"])
+@pytest.mark.parametrize(
+    "name", ["truncated_motion_last_line.bvh", "unknown_channel.bvh", "unbalanced_extra_brace.bvh"]
+)
 def test_malformed_file_is_refused_and_leaves_nothing_behind(name):
     path = MALFORMED / name
     assert path.is_file(), f"corpus file {name} is missing"

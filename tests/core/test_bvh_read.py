@@ -74,7 +74,7 @@ def hamilton(a, b):
 def q_channels(order, degrees):
     """The rotation of channels `order` with these angles: q_first * q_second * q_third."""
     q = np.array([1.0, 0.0, 0.0, 0.0])
-    for axis_letter, angle in zip(order, degrees):
+    for axis_letter, angle in zip(order, degrees, strict=True):
         q = hamilton(q, q_axis(axis_letter, angle))
     return q
 
@@ -198,8 +198,10 @@ def test_joints_without_rotation_channels_stay_at_rest():
 def test_every_rotation_order_per_joint(up):
     """A chain with one joint per order, all in one file; each joint's rotation is built by hand."""
     rng = np.random.default_rng(3)
-    joints = [(f"J{k}_{order}", k - 1, (0.0, 1.0, 0.0), [f"{c}rotation" for c in order], None)
-              for k, order in enumerate(ORDERS)]
+    joints = [
+        (f"J{k}_{order}", k - 1, (0.0, 1.0, 0.0), [f"{c}rotation" for c in order], None)
+        for k, order in enumerate(ORDERS)
+    ]
     joints[-1] = joints[-1][:4] + ((0.0, 1.0, 0.0),)
     angles = rng.uniform(-170.0, 170.0, size=(4, 6, 3))
     angles[0, :, 1] = 90.0  # gimbal lock in frame 0
@@ -230,14 +232,19 @@ BODY = [
     ("LeftLeg", 0, (0.1, -0.5, 0.0), ["Zrotation", "Xrotation", "Yrotation"], None),
     ("LeftFoot", 3, (0.0, -0.4, 0.03), ["Zrotation", "Xrotation", "Yrotation"], (0.0, -0.05, 0.1)),
 ]
-BODY_ROWS = np.array([[0.1, 0.95, -0.2, 5.0, 10.0, 15.0] + [7.0, -3.0, 12.0] * 4,
-                      [0.3, 0.93, 0.4, -5.0, 20.0, 45.0] + [-20.0, 8.0, 1.0] * 4])
+BODY_ROWS = np.array(
+    [
+        [0.1, 0.95, -0.2, 5.0, 10.0, 15.0] + [7.0, -3.0, 12.0] * 4,
+        [0.3, 0.93, 0.4, -5.0, 20.0, 45.0] + [-20.0, 8.0, 1.0] * 4,
+    ]
+)
 
 
 def body_in(scale):
     """BODY written in a unit of `scale` metres: offsets, end sites and position channels divided."""
-    joints = [(n, p, np.divide(off, scale), ch, None if end is None else np.divide(end, scale))
-              for n, p, off, ch, end in BODY]
+    joints = [
+        (n, p, np.divide(off, scale), ch, None if end is None else np.divide(end, scale)) for n, p, off, ch, end in BODY
+    ]
     rows = BODY_ROWS.copy()
     rows[:, :3] /= scale
     return make_bvh(joints, rows)
@@ -273,8 +280,9 @@ def test_unit_override_by_name_and_by_number():
     np.testing.assert_allclose(load(text, unit=0.5, up="Y").root_pos, auto.root_pos * 50.0, atol=1e-9)
 
 
-@pytest.mark.parametrize("unit, fragment", [("furlong", "unknown unit 'furlong'"), (0.0, "must be positive"),
-                                            (-0.01, "must be positive")])
+@pytest.mark.parametrize(
+    "unit, fragment", [("furlong", "unknown unit 'furlong'"), (0.0, "must be positive"), (-0.01, "must be positive")]
+)
 def test_bad_unit_override(unit, fragment):
     with pytest.raises(BVHError, match=re.escape(fragment)) as info:
         load(body_in(0.01), unit=unit)
@@ -294,8 +302,10 @@ def test_all_zero_offsets_need_a_unit():
 
 
 def test_y_up_file_becomes_z_up():
-    joints = [("Hips", -1, (1.0, 2.0, 3.0), POS + ["Yrotation"], None),
-              ("Tip", 0, (0.0, 1.0, 0.0), [], (0.5, 0.0, -2.0))]
+    joints = [
+        ("Hips", -1, (1.0, 2.0, 3.0), POS + ["Yrotation"], None),
+        ("Tip", 0, (0.0, 1.0, 0.0), [], (0.5, 0.0, -2.0)),
+    ]
     text = make_bvh(joints, [[4.0, 5.0, 6.0, 90.0]])
     y_up, z_up = load(text, up="Y"), load(text, up="Z")
     # (x, y, z) in the file -> (x, -z, y): +Y in the file is +Z in the world.
@@ -329,7 +339,7 @@ def raw_counts(path):
     channels = sum(int(w[1]) for w in words if w and w[0] == "CHANNELS")
     frames_at = next(n for n, w in enumerate(words) if w and w[0] == "Frames:")
     frame_time = float(words[frames_at + 1][2])
-    data = [w for w in words[frames_at + 2:] if w]
+    data = [w for w in words[frames_at + 2 :] if w]
     first, last = (np.array(w, dtype=float) for w in (data[0], data[-1]))
     return joints, end_sites, channels, int(words[frames_at][1]), frame_time, first, last
 
@@ -352,8 +362,11 @@ def test_real_mocap_parses(path):
 @pytest.mark.mocap
 @pytest.mark.parametrize(
     "relative, unit",
-    [("cmu/90_18.bvh", "cmu"), ("bandai_namco/dataset-1/dataset-1_walk_normal_002.bvh", "cm"),
-     ("cmu_iclone/007_01.bvh", "cm")],
+    [
+        ("cmu/90_18.bvh", "cmu"),
+        ("bandai_namco/dataset-1/dataset-1_walk_normal_002.bvh", "cm"),
+        ("cmu_iclone/007_01.bvh", "cm"),
+    ],
 )
 def test_real_mocap_unit_is_detected(relative, unit):
     assert bvh.unit_scale(bvh.parse_bvh(require_mocap(relative))) == bvh.UNITS[unit]

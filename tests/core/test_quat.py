@@ -23,7 +23,7 @@ def rodrigues(axis, angle):
 def euler_matrix(angles, order):
     """R = R_order[0] @ R_order[1] @ R_order[2] (BVH channel order composes left to right)."""
     m = np.eye(3)
-    for axis, angle in zip(order, angles):
+    for axis, angle in zip(order, angles, strict=True):
         m = m @ rodrigues(AXES[axis], angle)
     return m
 
@@ -101,9 +101,7 @@ def test_from_euler_matches_matrix_product(order, rng):
 
 @pytest.mark.parametrize("order", ORDERS)
 def test_to_euler_inverts_from_euler_in_the_principal_range(order, rng):
-    angles = np.column_stack(
-        [rng.uniform(-3.1, 3.1, 100), rng.uniform(-1.5, 1.5, 100), rng.uniform(-3.1, 3.1, 100)]
-    )
+    angles = np.column_stack([rng.uniform(-3.1, 3.1, 100), rng.uniform(-1.5, 1.5, 100), rng.uniform(-3.1, 3.1, 100)])
     np.testing.assert_allclose(quat.to_euler(quat.from_euler(angles, order), order), angles, atol=1e-9)
 
 

@@ -24,7 +24,6 @@ from reactive_anim.core.roles import (
     read_joint_name,
 )
 from reactive_anim.core.skeleton import Skeleton
-
 from tests.support.mocap import MOCAP, mocap_files, require_mocap
 
 # ---------------------------------------------------------------------------------------------
@@ -201,11 +200,12 @@ def _build(joints: list[tuple[str, str | None, tuple[float, float, float]]]) -> 
 def _rows(skeleton: Skeleton) -> list[tuple[str, str | None, tuple[float, float, float]]]:
     """The (name, parent name, offset) rows of a skeleton, to edit and rebuild."""
     parents = [None if p < 0 else skeleton.names[p] for p in skeleton.parents]
-    return list(zip(skeleton.names, parents, map(tuple, skeleton.offsets)))
+    return list(zip(skeleton.names, parents, map(tuple, skeleton.offsets), strict=True))
 
 
 def _mirror(rows, left: str, right: str):
     """The right-hand rows of a left limb: names with `left` swapped for `right`, x negated."""
+
     def swap(name):
         return None if name is None else name.replace(left, right)
 
@@ -371,7 +371,10 @@ def test_kinect_style_upper_arm_is_the_elbows_parent():
     assert roles["hip_r"] == "HipRight" and roles["ankle_r"] == "AnkleRight"
     assert "clavicle_l" not in roles and "toe_l" not in roles
     assert (roles["pelvis"], roles["waist"], roles["back"], roles["chest"]) == (
-        "SpineBase", "SpineMid", "SpineShoulder", "SpineShoulder",
+        "SpineBase",
+        "SpineMid",
+        "SpineShoulder",
+        "SpineShoulder",
     )
 
 
@@ -403,8 +406,14 @@ def test_pelvis_is_where_legs_and_spine_meet_not_the_ground_root():
 def _spine_of(count: int) -> Skeleton:
     spine = [f"Spine{i}" for i in range(1, count + 1)]
     return _humanoid(
-        spine=spine, neck=["Neck"], head_parts=["Head"], arm=["LeftArm", "LeftForeArm", "LeftHand"],
-        leg=["LeftUpLeg", "LeftLeg", "LeftFoot"], left="Left", right="Right", root="Hips",
+        spine=spine,
+        neck=["Neck"],
+        head_parts=["Head"],
+        arm=["LeftArm", "LeftForeArm", "LeftHand"],
+        leg=["LeftUpLeg", "LeftLeg", "LeftFoot"],
+        left="Left",
+        right="Right",
+        root="Hips",
     )
 
 
