@@ -16,8 +16,9 @@ Two joint profiles:
 - "paper": Table 1 as printed: ball joints (waist, back, neck, ankle) with a swing cone and a twist
   range, hinges (femur, knee, shoulder, elbow, wrist) with a range. The printed femur range -85..0
   is read with flexion negative, i.e. our flexion 0..85 (the thigh swings forward, not back).
-- "anatomical" (default): Table 1's masses with standard human ranges of motion; every joint has
-  three rotational freedoms so mocap can be followed (the printed knee of -25..25 cannot walk).
+- "anatomical" (default): Table 1's masses and joint types with human ranges of motion (AAOS,
+  see ANATOMICAL_LIMITS): knees and elbows single hinges, the ball joints three hinges each (the
+  printed knee of -25..25 cannot walk).
 A paper hinge follows only the flexion angle of the mocap's rotation (the Euler split below). Every
 hinge carries a spring-damper (MuJoCo `stiffness` toward `springref` = the neutral pose, and
 `damping`), scaled by the mass it moves, as the paper adds at the knee.
@@ -89,16 +90,34 @@ PAPER_LIMITS = {
     "elbow": ((-15, 45), None, None),
     "wrist": ((-60, 60), None, None),
 }
+# Normal active ranges of motion of adults, American Academy of Orthopaedic Surgeons, "Joint Motion:
+# Method of Measuring and Recording" (1965), as tabulated in Norkin & White, "Measurement of Joint
+# Motion" (5th ed., 2016), table of AAOS values. Rounded outward by up to 10 degrees where mocap
+# routinely goes there (a start pose beyond a limit is clamped to it). Per joint:
+# - waist + back share the thoracolumbar spine (AAOS: flexion 80, extension 25, lateral bending 35,
+#   rotation 45): lumbar-heavy flexion in the waist, most rotation in the back (White & Panjabi,
+#   "Clinical Biomechanics of the Spine", 2nd ed. 1990: lumbar axial rotation is a few degrees).
+# - neck: cervical spine flexion 45, extension 45, lateral bending 45, rotation 60 (+10, the head is
+#   merged into the neck body, so its nod on the atlas is in this joint too).
+# - hip: flexion 120, extension 30, abduction 45, adduction 30, internal and external rotation 45.
+# - knee and elbow: single hinges, flexion 0-150 (AAOS knee 135, elbow 150; 150 for a deep squat),
+#   no hyperextension (the limits are soft: a degree or two past 0 under load).
+# - ankle: plantar flexion 50, dorsiflexion 20 (+10 for running mocap), inversion/eversion 35/15
+#   about the foot's long axis (symmetric here, 35), forefoot abduction/adduction 10 (+10).
+# - shoulder: flexion 180, extension 60, abduction 180, adduction 50 (cross-body), rotation 70/90
+#   (symmetric here, 90: the twist hinge has no side-specific sign).
+# - wrist: flexion 80, extension 70, radial/ulnar deviation 20/30; the forearm's pronation and
+#   supination (80/80) happen here as the wrist's twist, the elbow being a single hinge.
 ANATOMICAL_LIMITS = {
-    "waist": ((-30, 50), (-30, 30), (-30, 30)),
-    "back": ((-25, 35), (-30, 30), (-25, 25)),
-    "neck": ((-60, 70), (-75, 75), (-45, 45)),
-    "hip": ((-40, 125), (-45, 45), (-35, 50)),
-    "knee": ((-5, 155), (-30, 30), (-15, 15)),
-    "ankle": ((-55, 50), (-35, 35), (-35, 35)),
-    "shoulder": ((-70, 180), (-90, 90), (-45, 180)),
-    "elbow": ((-5, 155), (-90, 90), (-25, 25)),
-    "wrist": ((-85, 85), (-45, 45), (-55, 55)),
+    "waist": ((-25, 55), (-20, 20), (-20, 20)),
+    "back": ((-15, 35), (-30, 30), (-20, 20)),
+    "neck": ((-50, 50), (-70, 70), (-45, 45)),
+    "hip": ((-30, 120), (-45, 45), (-30, 45)),
+    "knee": ((0, 150), None, None),
+    "ankle": ((-50, 30), (-35, 35), (-20, 20)),
+    "shoulder": ((-60, 180), (-90, 90), (-50, 180)),
+    "elbow": ((0, 150), None, None),
+    "wrist": ((-70, 80), (-80, 80), (-30, 30)),
 }
 PROFILES = {"paper": PAPER_LIMITS, "anatomical": ANATOMICAL_LIMITS}
 # A profile's limits: per joint kind (Table 1 row, e.g. "knee"), the (flexion, twist, abduction)
@@ -211,6 +230,8 @@ class Ragdoll:
     floor_geom: int  # geom id of the floor plane
     body_of_geom: np.ndarray  # per MuJoCo geom, the ragdoll body it belongs to (-1: the floor)
     dof_body: dict[int, str]  # body name per hinge dof address
+    leaf_joints: np.ndarray  # merged joints with no body below them (toes, fingers, head, face)
+    spine_segments: tuple[tuple[int, np.ndarray, np.ndarray], ...]  # (body, joints, weights): see _spine_segments
 
     @property
     def root(self) -> RagdollBody:
@@ -624,6 +645,7 @@ def build_ragdoll(
     text, model = _compile_without_touching_pairs(bodies, geometry)
     compile_seconds = time.perf_counter() - start
     bodies = [_with_addresses(b, model) for b in bodies]
+    segments = _spine_segments(skeleton, body_of_joint, index)
     return Ragdoll(
         model=model,
         mjcf=text,
@@ -636,8 +658,64 @@ def build_ragdoll(
         neutral_global_rot=_frozen(neutral.grot),
         body_of_joint=_frozen(body_of_joint),
         compile_seconds=compile_seconds,
+        leaf_joints=_frozen(np.setdiff1d(_leaf_joints(skeleton, bodies), np.concatenate([j for _, j, _ in segments] or [[]]))),
+        spine_segments=segments,
         **_index_arrays(skeleton, bodies, model),
     )
+
+
+def _parent(skeleton: Skeleton, joint: int) -> int:
+    return int(skeleton.parents[joint])
+
+
+def _leaf_joints(skeleton: Skeleton, bodies: list[RagdollBody]) -> np.ndarray:
+    """Joints without a body that have no body below them: they move nothing the simulation sees, so
+    the output takes their rotations from the mocap (toes, fingers, head, face)."""
+    body_joints = {b.joint for b in bodies}
+    carries = set()  # joints on the way to a body: their rotation places the bodies below
+    for j in body_joints:
+        p = int(skeleton.parents[j])
+        while p >= 0 and p not in carries:
+            carries.add(p)
+            p = int(skeleton.parents[p])
+    return np.array([j for j in range(skeleton.num_joints) if j not in body_joints | carries], dtype=int)
+
+
+def _spine_segments(
+    skeleton: Skeleton, body_of_joint: np.ndarray, index: dict[str, int]
+) -> tuple[tuple[int, np.ndarray, np.ndarray], ...]:
+    """How the trunk's and the neck's bends are shared among the skeleton's joints.
+
+    The ragdoll bends the trunk at the waist and back bodies and the neck at one, while skeletons
+    have two to four spine joints (pelvis to neck) and one to three neck joints, plus the head's own
+    nod (neck to head, the head merged into the neck body). Per spine body: its joints along that
+    path and the cumulative share of the body's bend each joint carries, by bone length (a longer
+    bone bends more, as vertebrae add up; the head counts as long as the neck).
+    """
+    segments = []
+    for first, last, after in (
+        (index["waist"], _parent(skeleton, index["neck"]), index["neck"]),
+        (index["neck"], index["head"], None),
+    ):
+        path = [last]
+        while path[-1] != first and path[-1] >= 0:
+            path.append(int(skeleton.parents[path[-1]]))
+        if path[-1] != first:
+            continue  # the head or neck is not below: nothing to share
+        joints = np.array(path[::-1])  # first ... last
+        ends = [*joints[1:], after] if after is not None else list(joints[1:])
+        lengths = np.array([np.linalg.norm(skeleton.offsets[c]) for c in ends])
+        if after is None:  # the head: as long as the neck before it
+            lengths = np.append(lengths, lengths[-1] if len(lengths) else 1.0)
+        owner = body_of_joint[joints]
+        for k in dict.fromkeys(owner.tolist()):
+            mine = owner == k
+            share = lengths[mine]
+            total = float(share.sum())
+            weights = np.cumsum(share) / total if total > 0 else np.arange(1, mine.sum() + 1) / mine.sum()
+            if mine.sum() > 1:
+                segments.append((int(k), _frozen(joints[mine]), _frozen(weights)))
+    return tuple(segments)
 
 
 def _resolve_profile(profile: str | JointLimits) -> tuple[str, JointLimits]:

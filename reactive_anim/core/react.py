@@ -30,6 +30,7 @@ from typing import Protocol
 
 import numpy as np
 
+from .balance import RootAssist
 from .blend import blend, fade_weights, place
 from .classes import CLASS_SLUGS
 from .errors import Cancelled, ImpactError, LibraryError, SkeletonError
@@ -66,6 +67,8 @@ class ReactionSettings:
       fallback still covers them) [0.1].
     resume: after a reaction that ends standing, resume the original motion [True].
     chain_blend: seconds over which a chained get-up fades in where the fall ends [0.2].
+    assist: the root assist that keeps the body up during CD (balance.py), None for the paper's
+      pure PD tracking [RootAssist(): at most 0.3 of body weight, let go past 20-40 degrees of tilt].
     """
 
     reaction_window: float = 0.25
@@ -75,6 +78,7 @@ class ReactionSettings:
     min_probability: float = 0.1
     resume: bool = True
     chain_blend: float = 0.2
+    assist: RootAssist | None = field(default_factory=RootAssist)
 
 
 class ReactionClassifier(Protocol):
@@ -182,7 +186,7 @@ def react(
     steps = max(1, int(round(settings.transition * motion.fps)))
     clip_ef = _frames(clip, frame_e, steps + 1)  # E..F; a clip that ends sooner holds its last pose
     target = blend(_frames(source or motion, frame_c, steps + 1), clip_ef, fade_weights(steps + 1))
-    cd = track(ragdoll, bc.state, target, steps / motion.fps, workspace=workspace)
+    cd = track(ragdoll, bc.state, target, steps / motion.fps, assist=settings.assist, workspace=workspace)
     clock.lap("cd")
     transition = blend(cd.motion, clip_ef, fade_weights(steps + 1))
     out = _join(before.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, clip.num_frames))

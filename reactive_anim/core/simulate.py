@@ -35,9 +35,10 @@ How, and what differs from the paper, with the reason:
   still prints its own one-line warning to stderr when it resets an unstable state.
 
 Output is a core Motion on the full input skeleton at the motion's frame times. Role joints come
-from the simulation; joints merged into a body (fingers, toes, clavicles, twist and face bones) and
-joints above the pelvis keep their mocap local rotation from the start frame; later stages blend
-the result back into mocap and bake it onto the character.
+from the simulation; a spine body's bend is shared by the skeleton joints it spans (waist and back
+over the spine joints, neck over the neck joints and the head); joints with no body below them
+(toes, fingers, twist and face bones) follow the mocap the servos track; joints between bodies
+(clavicles, helper bones) keep the start frame's rotation, as the model does.
 
 Per-run state: a Ragdoll is immutable. What a run changes (body offsets to the start frame's merged
 bones, servo gains) lives in a Workspace: a copy of the ragdoll's model and its own MjData. Pass one
@@ -61,6 +62,7 @@ import numpy as np
 from . import quat
 from .errors import SimulationError, SkeletonError
 from .impact import Impact
+from .balance import ASSIST_STEPS, AssistController, RootAssist
 from .ragdoll import JOINT_GROUPS, TIMESTEP, Ragdoll
 from .skeleton import Motion
 
@@ -112,6 +114,7 @@ class SimResult:
     contacts: (T, B) which ragdoll bodies (Ragdoll.bodies order) touch the floor at each sample.
     first_contact: per body name, the time in seconds after the run's start of the first sample at
       which it touches the floor (bodies that never do are absent); the feet usually at 0.
+    assist_fraction: the largest root assist used, as a fraction of body weight (balance.py).
     state: the state at the last sampled frame, to continue from (C for BC).
     """
 
@@ -125,6 +128,7 @@ class SimResult:
     contacts: np.ndarray
     first_contact: dict[str, float]
     state: SimState
+    assist_fraction: float = 0.0
 
     @property
     def com_height(self) -> np.ndarray:
@@ -591,12 +595,19 @@ def _samples(ws: Workspace, qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndar
     return xquat[:, ids], pelvis, com, com_vel
 
 
-def _to_motion(ragdoll: Ragdoll, held: HeldPose, body_rot: np.ndarray, pelvis_pos: np.ndarray, fps: float) -> Motion:
-    """Full-skeleton Motion from simulated body rotations; merged joints keep the held frame."""
+def _to_motion(
+    ragdoll: Ragdoll, held: HeldPose, follow: np.ndarray, body_rot: np.ndarray, pelvis_pos: np.ndarray, fps: float
+) -> Motion:
+    """Full-skeleton Motion from simulated body rotations (N, B, 4) and pelvis positions (N, 3).
+
+    Joints between bodies (clavicles, helper bones) keep the held frame, as in the model; joints with
+    no body below (toes, fingers, head) take their rotation from `follow` (N, J, 4), the mocap the
+    servos track; a spine body's bend is shared by the skeleton's joints it spans (_share_bends)."""
     skeleton = ragdoll.skeleton
     n = len(body_rot)
     hpos, hrot = held.global_pos, held.global_rot
     local = np.broadcast_to(held.local_rot, (n,) + held.local_rot.shape).copy()
+    local[:, ragdoll.leaf_joints] = follow[:, ragdoll.leaf_joints]
     joints = ragdoll.body_joints
     glob = quat.mul(body_rot, ragdoll.neutral_global_rot[joints])  # (N, B, 4)
     root = ragdoll.root
@@ -616,9 +627,32 @@ def _to_motion(ragdoll: Ragdoll, held: HeldPose, body_rot: np.ndarray, pelvis_po
     carry = quat.mul(quat.conj(hrot[parent_body_joint]), hrot[parent_joint])
     parent_rot = quat.mul(glob[:, body_parent], carry)
     local[:, joints[1:]] = quat.mul(quat.conj(parent_rot), glob[:, 1:])
+    _share_bends(ragdoll, local, held.local_rot)
     local = quat.make_continuous(quat.normalize(local))
     local_pos = np.broadcast_to(held.offsets, (n,) + held.offsets.shape).copy()
     return Motion(skeleton=skeleton, fps=fps, root_pos=root_pos, local_rot=local, local_pos=local_pos)
+
+
+def _share_bends(ragdoll: Ragdoll, local: np.ndarray, held: np.ndarray) -> None:
+    """Spread each spine body's bend over the skeleton joints it spans, in place.
+
+    The rigid body turns its first joint s0 by D (local[s0] = D held[s0], D in s0's parent frame) and
+    carries the held chain s1..sk. Shared, the chain's cumulative rotation up to joint i is
+    D^w_i H_i (H_i the held chain's, w_i the cumulative share, w_k = 1), so the segment curves
+    instead of kinking at s0 and its end, where the next body hangs, turns exactly as simulated."""
+    for _, joints, weights in ragdoll.spine_segments:
+        bend = quat.make_continuous(quat.mul(local[:, joints[0]], quat.conj(held[joints[0]])))
+        bend = np.where(bend[..., :1] < 0, -bend, bend)
+        ident = quat.identity(bend.shape[:1])
+        cumulative_held = held[joints[0]]
+        previous = quat.identity(bend.shape[:1])
+        for joint, weight in zip(joints, weights):
+            if joint != joints[0]:
+                cumulative_held = quat.mul(cumulative_held, held[joint])
+            share = quat.slerp(ident, bend, np.full(len(bend), weight))
+            cumulative = quat.mul(share, np.broadcast_to(cumulative_held, bend.shape))
+            local[:, joint] = quat.mul(quat.conj(previous), cumulative)
+            previous = cumulative
 
 
 # ---------------------------------------------------------------------------------------------
@@ -633,6 +667,9 @@ class _Plan:
     samples at `sample_offsets` (frames, >= start_offset); step counts depend only on these numbers.
     impulse: (MuJoCo body id, force) applied for the first step, or None.
     clock: the start's time in seconds on the caller's clock, for error messages.
+    follow: (S, J, 4) the target's local rotations at the samples, for the joints the output takes
+      from the mocap (Ragdoll.leaf_joints).
+    assist: the root assist toward the targets' pelvis (balance.py), or None for pure PD.
     """
 
     targets: np.ndarray
@@ -642,6 +679,8 @@ class _Plan:
     gains: ServoGains
     impulse: tuple[int, np.ndarray] | None
     clock: float
+    follow: np.ndarray
+    assist: RootAssist | None = None
 
 
 def _run(ws: Workspace, start: SimState, plan: _Plan) -> SimResult:
@@ -699,9 +738,14 @@ def _step_and_sample(ws: Workspace, start: SimState, plan: _Plan, watch: _Watch)
     data_ctrl = data.ctrl  # one view on MjData's buffer, not a new wrapper per step
     qpos_arr, qvel_arr = np.empty((len(goals), model.nq)), np.empty((len(goals), model.nv))
     contacts = np.zeros((len(goals), len(ws.ragdoll.bodies)), dtype=bool)
+    helper = None
+    if plan.assist is not None:
+        helper = AssistController(plan.assist, model, int(ws.ragdoll.body_ids[0]), plan.targets[:, 0:7])
     for n, goal in enumerate(goals):
         while step < goal:
             data_ctrl[:] = ctrl[step]
+            if helper is not None and step % ASSIST_STEPS == 0:
+                helper.apply(data, plan.start_offset + step / frame_steps, plan.fps, start.floor)
             if step == 0:
                 _first_step(model, data, plan.impulse, watch)
             else:
@@ -712,14 +756,15 @@ def _step_and_sample(ws: Workspace, start: SimState, plan: _Plan, watch: _Watch)
         qvel_arr[n] = data.qvel
         contacts[n] = _floor_contacts(ws, data)
     rots, pelvis, com, com_vel = _samples(ws, qpos_arr, qvel_arr)
-    motion = _to_motion(ws.ragdoll, start.held, rots, pelvis, plan.fps)
+    motion = _to_motion(ws.ragdoll, start.held, plan.follow, rots, pelvis, plan.fps)
     end = SimState(qpos=qpos_arr[-1].copy(), qvel=qvel_arr[-1].copy(), held=start.held, floor=start.floor)
     times = (np.asarray(plan.sample_offsets, dtype=float) - plan.start_offset) / plan.fps
     first = {body.name: float(times[np.argmax(contacts[:, k])])
              for k, body in enumerate(ws.ragdoll.bodies) if contacts[:, k].any()}  # fmt: skip
     return SimResult(motion=motion, frames=np.asarray(plan.sample_offsets, dtype=float), qpos=qpos_arr,
                      qvel=qvel_arr, com=com, com_velocity=com_vel, floor=start.floor, contacts=contacts,
-                     first_contact=first, state=end)  # fmt: skip
+                     first_contact=first, state=end,
+                     assist_fraction=0.0 if helper is None else helper.largest_fraction)  # fmt: skip
 
 
 def _floor_contacts(ws: Workspace, data: mujoco.MjData) -> np.ndarray:
@@ -747,6 +792,11 @@ def _first_step(
     watch.check()
     mujoco.mj_forward(model, data)
     watch.arm_energy()
+
+
+def _local_rotations(motion: Motion, frames: np.ndarray) -> np.ndarray:
+    """(len(frames), J, 4) normalised local rotations; frames past the end hold the last."""
+    return quat.normalize(motion.local_rot[np.clip(frames, 0, motion.num_frames - 1)])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -791,6 +841,7 @@ def simulate_impact(
         gains=gains,
         impulse=(body.body_id, np.asarray(impact.impulse) / TIMESTEP),
         clock=b / motion.fps,
+        follow=_local_rotations(motion, np.arange(int(np.ceil(b)), c + 1)),
     )
     with _workspace(ragdoll, workspace) as ws:
         start = _state_from_table(ws, motion, b, table)
@@ -808,9 +859,13 @@ def track(
     target_start: int = 0,
     start_frame: float = 0.0,
     gains: ServoGains = CD_GAINS,
+    assist: RootAssist | None = None,
     workspace: Workspace | None = None,
 ) -> SimResult:
     """CD: PD tracking (Eq. 2) of `target` from frame `target_start` for `duration` seconds.
+
+    assist: a root assist toward the target's pelvis that keeps the body up (balance.py); None
+    (default) is the paper's pure PD tracking.
 
     start: a SimState (e.g. BC's end state) or a Motion, whose frame `start_frame` gives the state.
     Sampled at the target's frame times target_start .. target_start + round(duration * fps); the
@@ -830,6 +885,8 @@ def track(
         gains=gains,
         impulse=None,
         clock=target_start / target.fps,
+        follow=_local_rotations(target, np.arange(target_start, target_start + n + 1)),
+        assist=assist,
     )
     with _workspace(ragdoll, workspace) as ws:
         if isinstance(start, Motion):

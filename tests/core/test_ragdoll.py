@@ -126,8 +126,11 @@ def test_missing_role_raises_skeleton_error(sample_walk):
 
 @pytest.mark.parametrize("dataset", ["sample", "bandai", "iclone"])
 def test_mocap_to_joint_angles_and_back_reproduces_the_pose(sample_walk, dataset):
-    """Every role joint lands where the mocap has it (the hinge split loses nothing within the
-    anatomical ranges' three freedoms), including merged bones held at the frame."""
+    """Every joint down to the knees and elbows lands where the mocap has it (a ball joint's three
+    hinges lose nothing), merged bones held at the frame included. Knees and elbows are single
+    hinges: below them only the flexion is kept, so a mocap knee or elbow that also twists or
+    carries an angle off the hinge's axis moves the hand or foot (on the sample skeleton, whose
+    knees and elbows are true hinges, nothing; on the real rigs a few cm, the fingers more)."""
     motion = sample_walk if dataset == "sample" else bvh.read_bvh(require_mocap(DATASETS[dataset]))
     ragdoll = build_ragdoll(motion.skeleton, reference=None if dataset == "sample" else motion)
     frame = min(40, motion.num_frames - 1)
@@ -136,12 +139,24 @@ def test_mocap_to_joint_angles_and_back_reproduces_the_pose(sample_walk, dataset
     workspace = Workspace(ragdoll)
     _place_bodies(workspace, held)
     rots, pelvis, _, _ = _samples(workspace, table.qpos, np.zeros((1, ragdoll.model.nv)))
-    out = _to_motion(ragdoll, held, rots, pelvis, motion.fps)
+    out = _to_motion(ragdoll, held, held.local_rot[None], rots, pelvis, motion.fps)
     expected = motion.global_positions()[frame]
     got = out.global_positions()[0]
-    assert np.abs(got - expected).max() < 1e-6
+    hinged = [b.joint for b in ragdoll.bodies if b.name[:-2] in ("knee", "elbow")]
+    below = np.array([any(a in hinged for a in _ancestors(motion.skeleton, j)) for j in range(len(got))])
+    error = np.linalg.norm(got - expected, axis=-1)
+    assert error[~below].max() < 1e-6
+    assert error[below].max() < (1e-6 if dataset == "sample" else 0.15)
     angle = quat.angle_between(out.local_rot[0], quat.normalize(motion.local_rot[frame]))
-    assert angle.max() < 1e-6
+    assert angle[~below & ~np.isin(np.arange(len(got)), hinged)].max() < 1e-6
+
+
+def _ancestors(skeleton, joint: int) -> list[int]:
+    """The joint's strict ancestors, nearest first."""
+    out = []
+    while (joint := int(skeleton.parents[joint])) >= 0:
+        out.append(joint)
+    return out
 
 
 # ---------------------------------------------------------------------------------------------

@@ -607,9 +607,6 @@ def test_falls_chain_to_the_getup_that_fits_how_they_end(library: dict) -> None:
 # Falls (physics: the ragdoll pushed, PD servos toward protective key poses) and sways
 
 
-HAND_DOWN = 0.05  # a wrist or finger tip this low is on the floor (the hand is ~3 cm thick), m
-KNEE_DOWN = 0.08  # a knee joint this low is on the floor (the knee is ~5 cm in radius), m
-HEAD_DOWN = 0.25  # the head joint (skull base) this low: the head is on the floor, m
 # A regenerated fall against its committed file (see the module docstring): before the first floor
 # contact of anything but the feet, and after it.
 BEFORE_CONTACT_DEGREES, BEFORE_CONTACT_ROOT = 0.01, 0.0001
@@ -617,29 +614,12 @@ AFTER_CONTACT_DEGREES, AFTER_CONTACT_ROOT, AFTER_CONTACT_JOINT = 15.0, 0.05, 0.1
 LENGTH_SLACK = 1.0  # s
 
 
-def pelvis_down(points: dict[str, np.ndarray]) -> int | None:
-    """First frame the pelvis is on the floor: within 3 cm of the lowest it gets in the clip (lying
-    or sitting it rests 10-20 cm up, depending on how it lies)."""
-    z = points["pelvis"][:, 2]
-    return first_frame(z < min(z.min() + 0.03, 0.4))
-
-
-def first_frame(mask: np.ndarray) -> int | None:
-    hits = np.flatnonzero(mask)
-    return int(hits[0]) if len(hits) else None
-
-
-def first_contact(points: dict[str, np.ndarray]) -> int:
-    """First frame a hand, a knee, the head or the pelvis is on the floor (the clip's length if none)."""
-    hands = np.min([points[k][:, 2] for k in ("hand.L", "hand.R", "hand.L.tip", "hand.R.tip")], axis=0)
-    knees = np.minimum(points["shin.L"][:, 2], points["shin.R"][:, 2])
-    frames = [
-        first_frame(hands < HAND_DOWN),
-        first_frame(knees < KNEE_DOWN),
-        first_frame(points["head"][:, 2] < HEAD_DOWN),
-        pelvis_down(points),
-    ]
-    return min([f for f in frames if f is not None], default=len(hands))
+def first_contact(name: str) -> int:
+    """The frame of the first floor contact of any body but the feet, as the simulation reports it
+    (the clip's length if none)."""
+    run = falls.simulate_fall(falls.FALLS[name])
+    times = [t for body, t in run.first_contact.items() if not body.startswith("ankle")]
+    return int(round(min(times) * run.motion.fps)) if times else run.motion.num_frames
 
 
 def held_to(motion: Motion, frames: int) -> Motion:
@@ -664,7 +644,7 @@ def test_regenerated_fall_matches_the_committed_one_within_tolerance(
     turn = np.degrees(quat.angle_between(fresh.local_rot, committed_held.local_rot)).max(axis=1)
     root = np.linalg.norm(fresh.root_pos - committed_held.root_pos, axis=1)
     joint = np.linalg.norm(fresh.global_positions() - committed_held.global_positions(), axis=-1).max(axis=1)
-    contact = first_contact(world_points(committed))
+    contact = first_contact(name)
     assert turn[:contact].max() < BEFORE_CONTACT_DEGREES and root[:contact].max() < BEFORE_CONTACT_ROOT, (
         f"{name} before contact (frame {contact}): joints {turn[:contact].max():.4f} deg, root "
         f"{root[:contact].max() * 1000:.3f} mm from sample_clips/"
@@ -712,14 +692,13 @@ def test_fall_or_sway_moves_the_centre_of_mass_the_way_its_class_says(clips: dic
 
 
 @pytest.mark.parametrize("name", [n for n in FALLS if "_hands_" in n])
-def test_hands_fall_touches_the_floor_with_a_hand_before_the_pelvis(clips: dict[str, Motion], name: str) -> None:
-    points = world_points(clips[name])
-    hand = first_frame(
-        np.min([points[k][:, 2] for k in ("hand.L", "hand.R", "hand.L.tip", "hand.R.tip")], axis=0) < HAND_DOWN
-    )
-    pelvis = pelvis_down(points)
-    assert hand is not None, f"{name}: no hand reaches the floor"
-    assert pelvis is None or hand < pelvis, f"{name}: hand down at frame {hand}, pelvis at {pelvis}"
+def test_hands_fall_touches_the_floor_with_a_hand_before_the_pelvis(name: str) -> None:
+    """By the simulation's own floor contacts."""
+    contact = falls.simulate_fall(falls.FALLS[name]).first_contact
+    hands = [contact[side] for side in ("wrist_l", "wrist_r") if side in contact]
+    assert hands, f"{name}: no hand reaches the floor"
+    pelvis = contact.get("pelvis", np.inf)
+    assert min(hands) < pelvis, f"{name}: hand down at {min(hands):.2f} s, pelvis at {pelvis:.2f} s"
 
 
 @pytest.mark.parametrize("name", [n for n in FALLS if n.startswith("fall_backward_sit")])
@@ -727,8 +706,9 @@ def test_backward_sit_ends_sitting_without_rolling_onto_the_back(clips: dict[str
     """From the moment the pelvis is down the head stays above 0.5 m: it sits, it does not rock
     over onto its back (the physics did that with harder pushes)."""
     points = world_points(clips[name])
-    landed = pelvis_down(points)
-    assert landed is not None
+    contact = falls.simulate_fall(falls.FALLS[name]).first_contact
+    assert "pelvis" in contact, f"{name}: the pelvis never reaches the floor"
+    landed = int(round(contact["pelvis"] * clips[name].fps))
     head = points["head"][landed:, 2]
     assert head.min() > 0.5, f"{name}: the head drops to {head.min():.2f} m at frame {landed + head.argmin()}"
 
@@ -746,11 +726,14 @@ def test_forward_roll_goes_over_and_ends_face_up(clips: dict[str, Motion], name:
 
 
 @pytest.mark.parametrize("name", [n for n in FALLS if n.startswith("fall_side_knees")])
-def test_side_fall_lands_on_a_knee_first(clips: dict[str, Motion], name: str) -> None:
-    points = world_points(clips[name])
-    knee = first_frame(np.minimum(points["shin.L"][:, 2], points["shin.R"][:, 2]) < KNEE_DOWN)
-    pelvis = pelvis_down(points)
-    assert knee is not None and (pelvis is None or knee < pelvis), (name, knee, pelvis)
+def test_side_fall_lands_on_a_knee_first(name: str) -> None:
+    """By the simulation's own floor contacts: a leg (thigh or shin body, the knee is where they
+    meet) before the pelvis and trunk."""
+    contact = falls.simulate_fall(falls.FALLS[name]).first_contact
+    knees = [contact[body] for body in ("hip_l", "hip_r", "knee_l", "knee_r") if body in contact]
+    assert knees, f"{name}: no knee reaches the floor ({contact})"
+    others = [t for body, t in contact.items() if body in ("pelvis", "waist", "back")]
+    assert min(knees) < min(others, default=np.inf), (name, contact)
 
 
 @pytest.mark.parametrize("name", FALLS)

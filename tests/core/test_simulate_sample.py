@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh
+from reactive_anim.core import bvh, quat
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.ragdoll import Ragdoll, build_ragdoll
 from reactive_anim.core.simulate import SimResult, simulate_impact, track
@@ -232,3 +232,23 @@ def test_contacts_report_the_feet_then_the_body_that_lands(clips):
         assert t == pytest.approx((cd.frames[first] - cd.frames[0]) / walk.fps)
     assert 0.8 < bc.com_height[0] < 1.2  # a standing adult's centre of mass, about 55% of height
     assert cd.com_height[-1] < 0.5  # lying down
+
+
+def test_the_trunk_bend_is_shared_and_the_toes_follow_the_mocap(clips):
+    """A hard chest push bends the trunk: every spine joint the back body spans (spine.001, chest)
+    and both neck and head turn away from the start pose, not one of them alone; the toes, which
+    the ragdoll does not have, keep the walk's animation frame by frame."""
+    clip = clips["walk"]
+    walk, ragdoll = clip.motion, clip.ragdoll
+    forward, _ = character_axes(clip, 40)
+    bc = simulate_impact(ragdoll, walk, Impact(40, bone(clip, "chest"), tuple(forward), 200.0))
+    names = walk.skeleton.names
+    start = bc.motion.local_rot[0]
+    for segment in (("spine.001", "chest"), ("neck", "head")):
+        turned = [np.degrees(quat.angle_between(bc.motion.local_rot[-1, names.index(j)], start[names.index(j)]))
+                  for j in segment]  # fmt: skip
+        assert min(turned) > 0.25 * max(turned) > 0.1, (segment, turned)
+    frames = bc.frames.astype(int)
+    for toe in ("toe.L", "toe.R"):
+        k = names.index(toe)
+        assert np.allclose(np.abs(np.sum(bc.motion.local_rot[:, k] * walk.local_rot[frames, k], axis=-1)), 1.0)

@@ -12,15 +12,13 @@ body goes. The root is never actuated: nothing holds the character up. A fall en
 floor, and its `next` is the get-up that fits how it lies.
 
 What the simulation output needs before it is written, and why:
-- Knee and elbow are hinges in the sample skeleton (the clip tests allow 1 degree off the hinge),
-  but the anatomical ragdoll gives them a little twist and abduction: those two hinges are locked
-  (range +-0.1 degree) on this tool's ragdoll, and what remains is projected onto the flexion axis.
-- The ragdoll bends the trunk at two joints (waist = spine, back = spine.001 with the chest merged)
-  and the head at one (neck, head merged), where the sample skeleton shares a bend over three and
-  two joints: the simulated bend is spread evenly over them (same total, same end orientation).
-- The ragdoll has no toe joint (the toes are merged into the foot and keep the start frame's
-  bend, none at the committed starts): the toes are written flat. The simulation's floor
-  (simulate.py puts it where the start frame's soles are, a few mm off z = 0) is moved to z = 0.
+- Knee and elbow are hinges in the sample skeleton and single hinges in the anatomical ragdoll;
+  the ragdoll's hinge axis comes from the neutral pose, a fraction of a degree off the skeleton's
+  X axis, so the rotation is projected onto X (the clip tests allow 1 degree off the hinge).
+- The simulation shares the trunk's bend over spine.001 and chest and the neck's over neck and
+  head (simulate.py). It takes the toes from the servo target, which switches at C from the walk
+  to the keyed poses: the toes are written flat. The simulation's floor (simulate.py puts it where
+  the start frame's soles are, a few mm off z = 0) is moved to z = 0.
 - Every other joint angle is written as the simulation gave it.
 
 MuJoCo gives the same bits for the same input on one machine (fixed step counts), but not
@@ -47,7 +45,6 @@ from .idle import idle_clip
 from .poses import pose, pose_vector, posed
 from .skeleton import FPS, SIDES, UP, X_AXIS, clip_motion, heading, sample_skeleton
 
-HINGE_LOCK = 0.1  # knee and elbow twist and abduction range on this tool's ragdoll
 
 
 @lru_cache(maxsize=1)
@@ -57,14 +54,14 @@ def _start_motions() -> dict[str, Motion]:
 
 @lru_cache(maxsize=1)
 def sample_ragdoll() -> Ragdoll:
-    """The ragdoll of the sample skeleton, neutral pose from the idle stand, knees and elbows hinges.
+    """The ragdoll of the sample skeleton, neutral pose from the idle stand.
 
-    The clip tests allow no hyperextension (the anatomical ragdoll allows 5 degrees); the limit is
-    soft, so it starts a degree into flexion."""
+    The clip tests allow no hyperextension; knee and elbow limits are soft (a degree or two past 0
+    under load), so on this tool's ragdoll they start a degree into flexion."""
     limits = dict(ANATOMICAL_LIMITS)
     for part in ("knee", "elbow"):
-        flexion = limits[part][0]
-        limits[part] = ((max(flexion[0], 1.0), flexion[1]), (-HINGE_LOCK, HINGE_LOCK), (-HINGE_LOCK, HINGE_LOCK))
+        (low, high), twist, abduction = limits[part]
+        limits[part] = ((max(low, 1.0), high), twist, abduction)
     return build_ragdoll(sample_skeleton(), profile=limits, reference=_start_motions()["idle"])
 
 
@@ -110,27 +107,15 @@ def _project_hinge(q: np.ndarray, axis: np.ndarray) -> np.ndarray:
     return quat.normalize(twist)
 
 
-def _spread(local: np.ndarray, joints: list[int]) -> None:
-    """Spread the product of a chain's local rotations evenly over its joints (in place)."""
-    total = local[:, joints[0]]
-    for j in joints[1:]:
-        total = quat.mul(total, local[:, j])
-    part = quat.slerp(quat.identity((len(total),)), quat.make_continuous(total), 1.0 / len(joints))
-    for j in joints:
-        local[:, j] = part
-
-
 def _clean(motion: Motion, floor: float) -> Motion:
     """The simulation's output made fit for the sample skeleton (see the module docstring)."""
     sk = motion.skeleton
     local = quat.normalize(motion.local_rot.copy())
-    for side in SIDES:  # the ragdoll has no toes: they stay as they were at the push; flat here
+    for side in SIDES:  # the toes follow the servo target, the walk's in BC, the keys' after: flat here
         local[:, sk.index(f"toe.{side}")] = quat.identity((len(local),))
     for side in SIDES:
         local[:, sk.index(f"shin.{side}")] = _project_hinge(local[:, sk.index(f"shin.{side}")], X_AXIS)
         local[:, sk.index(f"forearm.{side}")] = _project_hinge(local[:, sk.index(f"forearm.{side}")], X_AXIS)
-    _spread(local, [sk.index(n) for n in ("spine", "spine.001", "chest")])
-    _spread(local, [sk.index(n) for n in ("neck", "head")])
     root = motion.root_pos - np.array([0.0, 0.0, floor])  # the simulated floor is z = 0 in the clip
     return Motion(skeleton=sk, fps=float(FPS), root_pos=root, local_rot=local)
 
@@ -142,11 +127,13 @@ def push_direction(fall: Fall) -> tuple[float, float, float]:
 
 @dataclass
 class FallRun:
-    """A simulated fall: the cleaned motion (clip frame 0 = the push) and the ragdoll's centre of
-    mass per frame (floor at z = 0)."""
+    """A simulated fall: the cleaned motion (clip frame 0 = the push), the ragdoll's centre of
+    mass per frame (floor at z = 0), and per ragdoll body the time (s after the push) of its first
+    floor contact, as the simulation reports it."""
 
     motion: Motion
     com: np.ndarray
+    first_contact: dict[str, float]
 
 
 def simulate_fall(fall: Fall) -> FallRun:
@@ -170,7 +157,9 @@ def simulate_fall(fall: Fall) -> FallRun:
     local = np.concatenate([bc.motion.local_rot, cd.motion.local_rot[1:]])
     motion = _clean(Motion(skeleton=bc.motion.skeleton, fps=float(FPS), root_pos=root, local_rot=local), bc.state.floor)
     com = np.concatenate([bc.com, cd.com[1:]]) - np.array([0.0, 0.0, bc.state.floor])
-    return FallRun(motion, com)
+    bc_seconds = (bc.frames[-1] - bc.frames[0]) / FPS
+    first = {name: bc_seconds + t for name, t in cd.first_contact.items()} | bc.first_contact
+    return FallRun(motion, com, first)
 
 
 SETTLED_SPEED = 0.01  # m/s: a body whose joints all move slower than this has settled
@@ -271,7 +260,7 @@ def _side_knees(direction: float, strength: float, knee: float) -> Fall:
         (1.5, pose(hip_flex=40.0, knee=130.0, ankle=50.0, spine_pitch=20.0, spine_roll=-20.0, arm_abd=30.0,
                    elbow=30.0)),
         (2.3, pose(LYING_FACE_DOWN, wrist=0.0)),
-    ), next="getup_face_down.bvh", duration=5.0)
+    ), next="getup_face_down.bvh", duration=8.5)
 
 
 FALLS: dict[str, Fall] = {
@@ -283,7 +272,7 @@ FALLS: dict[str, Fall] = {
     "fall_forward_hands_3": _catch_forward("walk", 88, 0.0, 100.0),
     "fall_backward_hands_1": _catch_backward("idle", 0, 180.0, 80.0),
     "fall_backward_hands_2": _catch_backward("idle", 0, 160.0, 70.0),
-    "fall_backward_hands_3": _catch_backward("idle", 0, -150.0, 90.0),
+    "fall_backward_hands_3": _catch_backward("idle", 0, -150.0, 85.0),
     "fall_backward_sit_1": _sit(180.0, 10.0, 100.0, 125.0, 50.0, 90.0),
     "fall_backward_sit_2": _sit(160.0, 10.0, 80.0, 110.0, 50.0, 90.0),
     "fall_backward_sit_3": _sit(-160.0, 10.0, 110.0, 135.0, 60.0, 110.0),
