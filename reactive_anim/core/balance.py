@@ -67,7 +67,9 @@ class AssistController:
         lever = self.weight * height  # toppling stiffness m g h, N·m/rad
         error = quat.mul(target[3:7], quat.conj(q))
         error = error if error[0] >= 0 else -error
-        rotvec = 2.0 * error[1:] * (math.atan2(np.linalg.norm(error[1:]), error[0]) / max(np.linalg.norm(error[1:]), 1e-12))
+        rotvec = (
+            2.0 * error[1:] * (math.atan2(np.linalg.norm(error[1:]), error[0]) / max(np.linalg.norm(error[1:]), 1e-12))
+        )
         tilt = math.hypot(rotvec[0], rotvec[1])
         fade = float(np.clip((self.assist.fade_end - tilt) / (self.assist.fade_end - self.assist.fade_start), 0.0, 1.0))
         spin = quat.rotate(q, data.qvel[3:6])  # free-joint angular velocity is in the body frame

@@ -52,6 +52,7 @@ from .roles import assign_roles
 from .search_index import SearchIndex, build_index
 from .skeleton import Motion, resample
 from .window import FrameFeatures, frame_features
+
 MANIFEST_NAME = "library.toml"
 # Bump when the features or the cache layout change, so old caches are never read.
 FEATURE_VERSION = 1
@@ -329,7 +330,9 @@ def _read_toml(toml_path: Path) -> list[ClipEntry]:
     chains = _chain_paths(toml_path, data)
     for entry in entries:
         if entry.next is not None and entry.next not in names and entry.next not in chains:
-            raise _entry_error(entry.name, f"next = {entry.next!r} is neither a [[clip]] nor a [[chain]] of this library")
+            raise _entry_error(
+                entry.name, f"next = {entry.next!r} is neither a [[clip]] nor a [[chain]] of this library"
+            )
     return entries
 
 

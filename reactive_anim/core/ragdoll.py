@@ -316,8 +316,15 @@ def _body_layout(skeleton: Skeleton, roles: dict[str, str]) -> tuple[list[Ragdol
         members = [int(m) for m in np.flatnonzero(body_of_joint == k)]
         bodies.append(RagdollBody(names[0], j, parent, names, members, mass, np.eye(3)))
     # The pelvis sits below the waist: the other bodies must hang from the expected ones.
-    for child, parent in (("waist", "pelvis"), ("hip_l", "pelvis"), ("hip_r", "pelvis"), ("knee_l", "hip_l"),
-                          ("knee_r", "hip_r"), ("elbow_l", "shoulder_l"), ("elbow_r", "shoulder_r")):
+    for child, parent in (
+        ("waist", "pelvis"),
+        ("hip_l", "pelvis"),
+        ("hip_r", "pelvis"),
+        ("knee_l", "hip_l"),
+        ("knee_r", "hip_r"),
+        ("elbow_l", "shoulder_l"),
+        ("elbow_r", "shoulder_r"),
+    ):
         c = next(b for b in bodies if child in b.roles)
         p = next(b for b in bodies if parent in b.roles)
         if bodies[c.parent] is not p:
@@ -364,7 +371,9 @@ class _Geometry:
 CharacterFrame = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
-def _segment_end(skeleton: Skeleton, bodies: list[RagdollBody], k: int, pose: _Pose, index: dict[str, int]) -> np.ndarray:
+def _segment_end(
+    skeleton: Skeleton, bodies: list[RagdollBody], k: int, pose: _Pose, index: dict[str, int]
+) -> np.ndarray:
     """Where body k's capsule ends (world, in the given pose)."""
     pos, grot = pose.pos, pose.grot
     body = bodies[k]
@@ -441,7 +450,7 @@ def _neutral_pose(skeleton: Skeleton, bodies: list[RagdollBody], index: dict[str
         return p[0], r[0]
 
     pos, grot = fk()
-    forward, left, up = _character_frame(pos, index)
+    forward, _, up = _character_frame(pos, index)
     down = -up
     foot = _unit(forward * np.cos(foot_pitch) - up * np.sin(foot_pitch))
     aim = {"pelvis": up, "waist": up, "back": up, "neck": up, "hip": down, "knee": down,
@@ -503,7 +512,7 @@ def _mjcf(ragdoll_bodies: list[RagdollBody], geometry: _Geometry, excludes: list
         lines = [f'{indent}<body name="{b.name}" pos="{_fmt(origin)}">']
         if b.parent < 0:
             lines.append(f'{indent}  <freejoint name="root"/>')
-        for slot, sign, rng in zip(b.hinges, b.hinge_sign[list(b.hinges)], b.ranges):
+        for slot, sign, rng in zip(b.hinges, b.hinge_sign[list(b.hinges)], b.ranges, strict=True):
             axis = b.axes[slot] * sign
             damping = JOINT_DAMPING_PER_KG * b.subtree_mass
             stiffness = JOINT_STIFFNESS_PER_KG * b.subtree_mass
@@ -658,7 +667,9 @@ def build_ragdoll(
         neutral_global_rot=_frozen(neutral.grot),
         body_of_joint=_frozen(body_of_joint),
         compile_seconds=compile_seconds,
-        leaf_joints=_frozen(np.setdiff1d(_leaf_joints(skeleton, bodies), np.concatenate([j for _, j, _ in segments] or [[]]))),
+        leaf_joints=_frozen(
+            np.setdiff1d(_leaf_joints(skeleton, bodies), np.concatenate([j for _, j, _ in segments] or [[]]))
+        ),
         spine_segments=segments,
         **_index_arrays(skeleton, bodies, model),
     )
@@ -788,7 +799,7 @@ def _with_hinges(
         subtree[k] += out[k].mass
         if out[k].parent >= 0:
             subtree[out[k].parent] += subtree[k]
-    return [replace(b, subtree_mass=m) for b, m in zip(out, subtree)]
+    return [replace(b, subtree_mass=m) for b, m in zip(out, subtree, strict=True)]
 
 
 def _compile_without_touching_pairs(bodies: list[RagdollBody], geometry: _Geometry) -> tuple[str, mujoco.MjModel]:
@@ -834,8 +845,11 @@ def _index_arrays(skeleton: Skeleton, bodies: list[RagdollBody], model: mujoco.M
         while j >= 0 and j not in needed:
             needed.add(j)
             j = int(skeleton.parents[j])
-    rows = [(k, slot, adr, dof, b.hinge_sign[slot])
-            for k, b in enumerate(bodies) for slot, adr, dof in zip(b.hinges, b.qpos_adr, b.dof_adr)]  # fmt: skip
+    rows = [
+        (k, slot, adr, dof, b.hinge_sign[slot])
+        for k, b in enumerate(bodies)
+        for slot, adr, dof in zip(b.hinges, b.qpos_adr, b.dof_adr, strict=True)
+    ]
     ranges = np.radians(np.concatenate([b.ranges for b in bodies[1:]])) if len(bodies) > 1 else np.zeros((0, 2))
     children = tuple(bodies)
     arrays = {

@@ -182,8 +182,8 @@ def react(
     match = _search(library, query, impact, probabilities, settings)
     clock.lap("search")
     clip = place(library.clip_motion(match.clip, motion.fps), match.yaw, match.offset)
-    frame_e = int(round((match.jump_frame + library.window - 1) / library.fps * motion.fps))
-    steps = max(1, int(round(settings.transition * motion.fps)))
+    frame_e = round((match.jump_frame + library.window - 1) / library.fps * motion.fps)
+    steps = max(1, round(settings.transition * motion.fps))
     clip_ef = _frames(clip, frame_e, steps + 1)  # E..F; a clip that ends sooner holds its last pose
     target = blend(_frames(source or motion, frame_c, steps + 1), clip_ef, fade_weights(steps + 1))
     cd = track(ragdoll, bc.state, target, steps / motion.fps, assist=settings.assist, workspace=workspace)
@@ -201,7 +201,9 @@ def react(
         frame_c=frame_c,
         frame_f=frame_c + steps,
         end_frame=end_frame,
-        probabilities=dict(zip(CLASS_SLUGS, map(float, probabilities))) if probabilities is not None else {},
+        probabilities=dict(zip(CLASS_SLUGS, map(float, probabilities), strict=True))
+        if probabilities is not None
+        else {},
         predicted=impact.reaction or (None if probabilities is None else CLASS_SLUGS[int(np.argmax(probabilities))]),
         scope=match.scope,
         reaction_class=match.reaction_class,
@@ -304,7 +306,9 @@ def _search(
     if probabilities is None:
         return search(library, query, None, settings.search_threshold)
     order = [CLASS_SLUGS[k] for k in np.argsort(-probabilities, kind="stable")]
-    likely = [slug for slug, p in zip(order, np.sort(probabilities)[::-1]) if p >= settings.min_probability]
+    likely = [
+        slug for slug, p in zip(order, np.sort(probabilities)[::-1], strict=True) if p >= settings.min_probability
+    ]
     if not any(slug in library.class_ranges for slug in likely):
         likely = [slug for slug in order if slug in library.class_ranges][:1]
     if not likely:
@@ -322,7 +326,7 @@ def _chain(
     follow = library.clip_motion(name, fps)
     yaw, offset = _alignment(out.slice(out.num_frames - 1, out.num_frames), follow.slice(0, 1))
     follow = place(follow, yaw, offset)
-    overlap = max(1, min(int(round(settings.chain_blend * fps)), follow.num_frames - 1, out.num_frames - 1))
+    overlap = max(1, min(round(settings.chain_blend * fps), follow.num_frames - 1, out.num_frames - 1))
     tail = out.slice(out.num_frames - 1, out.num_frames)
     held = _join(*([tail] * overlap))
     faded = blend(held, follow.slice(0, overlap), fade_weights(overlap))
@@ -330,13 +334,18 @@ def _chain(
 
 
 def _resume_or_hold(
-    out: Motion, source: Motion, impact: Impact, library: Library, match: Match, chained: str | None,
+    out: Motion,
+    source: Motion,
+    impact: Impact,
+    library: Library,
+    match: Match,
+    chained: str | None,
     settings: ReactionSettings,
 ) -> tuple[Motion, int | None]:
     """Resume the source after a standing ending; else hold the last pose up to the source's end."""
     standing = chained is not None or not match.reaction_class.startswith("fall_")
     first = int(np.ceil(impact.frame))
-    window = max(2, int(round(library.window * source.fps / library.fps)))
+    window = max(2, round(library.window * source.fps / library.fps))
     if settings.resume and standing and source.num_frames - first > window:
         return _resume(out, source, first, window)
     missing = source.num_frames - out.num_frames

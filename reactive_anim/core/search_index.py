@@ -232,7 +232,9 @@ def _pivot_error(distance: float, window: int, wp: np.ndarray, wq: np.ndarray) -
     return 1e-4 * distance + 1e-4 * window * (float(np.sum(wp)) + float(np.sum(wq)))
 
 
-def _choose_pivots(library: IndexedFrames, starts: np.ndarray, count: int, wp: np.ndarray, wq: np.ndarray) -> np.ndarray:
+def _choose_pivots(
+    library: IndexedFrames, starts: np.ndarray, count: int, wp: np.ndarray, wq: np.ndarray
+) -> np.ndarray:
     """Pivot windows (indices into `starts`) far apart: farthest-point traversal over a subsample.
 
     Far-apart pivots see the library from different sides, so for most candidates some pivot's
@@ -354,7 +356,8 @@ def _pivot_node_ranges(
     """Per level, the range (lo, hi) of each node's pivot distances, widened by the float32 error
     (one margin for all: the error at the largest distance); and that margin."""
     if pivot_dist.size == 0:
-        return [(np.zeros((len(f) - 1, 0), np.float32),) * 2 for f in firsts], 0.0
+        empty = [np.zeros((len(f) - 1, 0), np.float32) for f in firsts]
+        return [(e, e) for e in empty], 0.0
     margin = np.float32(_pivot_error(float(pivot_dist.max()), window, wp, wq))
     lo = np.minimum.reduceat(pivot_dist, firsts[0][:-1], axis=0) - margin
     hi = np.maximum.reduceat(pivot_dist, firsts[0][:-1], axis=0) + margin
@@ -605,7 +608,7 @@ class _Traversal:
             i += 8
             costs = window_costs(index.frames, index.starts[group], self.query, self.wp, self.wq)
             self.evaluated += len(group)
-            for cost, cand in zip(costs, group):
+            for cost, cand in zip(costs, group, strict=True):
                 start = int(index.starts[cand])
                 if cost < self.best_cost or (cost == self.best_cost and start < self.best_start):
                     self.best_cost, self.best_start = float(cost), start

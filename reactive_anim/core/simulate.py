@@ -60,9 +60,9 @@ import mujoco
 import numpy as np
 
 from . import quat
+from .balance import ASSIST_STEPS, AssistController, RootAssist
 from .errors import SimulationError, SkeletonError
 from .impact import Impact
-from .balance import ASSIST_STEPS, AssistController, RootAssist
 from .ragdoll import JOINT_GROUPS, TIMESTEP, Ragdoll
 from .skeleton import Motion
 
@@ -89,8 +89,8 @@ class HeldPose:
     local_rot: np.ndarray
     offsets: np.ndarray
     root_pos: np.ndarray
-    global_pos: np.ndarray | None = None
-    global_rot: np.ndarray | None = None
+    global_pos: np.ndarray
+    global_rot: np.ndarray
 
 
 @dataclass
@@ -257,9 +257,13 @@ class _MocapPoses:
 
     def held(self, k: int) -> HeldPose:
         """Row k as a HeldPose, with arrays of its own."""
-        return HeldPose(local_rot=self.local_rot[k].copy(), offsets=np.array(self.offsets[k], dtype=float),
-                        root_pos=self.root_pos[k].copy(), global_pos=self.global_pos[k].copy(),
-                        global_rot=self.global_rot[k].copy())
+        return HeldPose(
+            local_rot=self.local_rot[k].copy(),
+            offsets=np.array(self.offsets[k], dtype=float),
+            root_pos=self.root_pos[k].copy(),
+            global_pos=self.global_pos[k].copy(),
+            global_rot=self.global_rot[k].copy(),
+        )
 
 
 def mocap_qpos(ragdoll: Ragdoll, motion: Motion, frames: np.ndarray) -> np.ndarray:
@@ -294,8 +298,9 @@ def _mocap_poses(ragdoll: Ragdoll, motion: Motion, frames: np.ndarray) -> _Mocap
     angles = quat.to_euler(quat.mul(quat.conj(fq), quat.mul(rel, fq)), "XYZ")  # (N, B, 3)
     hinge = angles[:, ragdoll.hinge_body, ragdoll.hinge_slot] * ragdoll.hinge_sign
     qpos[:, ragdoll.hinge_qpos] = np.unwrap(hinge, axis=0)
-    return _MocapPoses(qpos=qpos, local_rot=local_rot, offsets=offsets, root_pos=root_pos, global_pos=pos,
-                       global_rot=grot)
+    return _MocapPoses(
+        qpos=qpos, local_rot=local_rot, offsets=offsets, root_pos=root_pos, global_pos=pos, global_rot=grot
+    )
 
 
 def _interp_qpos(table: np.ndarray, t: float) -> np.ndarray:
@@ -323,7 +328,9 @@ class _MocapTable:
         """The held pose of a frame of the table."""
         k = frame - self.first
         if not 0 <= k < len(self.qpos):
-            raise SimulationError(f"frame {frame} is outside the pose table's frames {self.first}..{self.first + len(self.qpos) - 1}")
+            raise SimulationError(
+                f"frame {frame} is outside the pose table's frames {self.first}..{self.first + len(self.qpos) - 1}"
+            )
         return self.poses.held(k)
 
 
@@ -334,9 +341,7 @@ def _mocap_table(ragdoll: Ragdoll, motion: Motion, lo: float, hi: float) -> _Moc
     return _MocapTable(first, poses.qpos, poses)
 
 
-def state_from_mocap(
-    ragdoll: Ragdoll, motion: Motion, frame: float, workspace: Workspace | None = None
-) -> SimState:
+def state_from_mocap(ragdoll: Ragdoll, motion: Motion, frame: float, workspace: Workspace | None = None) -> SimState:
     """Ragdoll state at a (possibly fractional) frame: pose from the rotations, velocity by central
     differences over one frame either side, so the character keeps the motion's momentum; and the
     ground height the mocap stands on there (see ground_level)."""
@@ -368,7 +373,7 @@ def _state_from_table(ws: Workspace, motion: Motion, frame: float, table: _Mocap
         angle = 2.0 * np.arctan2(np.linalg.norm(d[1:]), d[0])
         qvel[3:6] = d[1:] / max(np.linalg.norm(d[1:]), 1e-12) * angle / span
         qvel[ragdoll.hinge_dof] = (after[ragdoll.hinge_qpos] - before[ragdoll.hinge_qpos]) / span
-    held = table.held(int(round(frame)))
+    held = table.held(round(frame))
     floor = _ground_level(ws, table, frame, held, GROUND_SPAN * motion.fps)
     return SimState(qpos=qpos, qvel=qvel, held=held, floor=floor)
 
@@ -385,7 +390,7 @@ def ground_level(
     reach = span * motion.fps
     table = _mocap_table(ragdoll, motion, frame - reach, frame + reach)
     with _workspace(ragdoll, workspace) as ws:
-        return _ground_level(ws, table, frame, table.held(int(round(frame))), reach)
+        return _ground_level(ws, table, frame, table.held(round(frame)), reach)
 
 
 def _ground_level(ws: Workspace, table: _MocapTable, frame: float, held: HeldPose, reach: float) -> float:
@@ -555,7 +560,7 @@ class _Watch:
     def _raise_warning(self, t: float) -> None:
         """The first of _WARNINGS MuJoCo raised, with its message and the degree of freedom it names."""
         d = self.data
-        for name, index in zip(_WARNINGS, _WARNING_IDS):
+        for name, index in zip(_WARNINGS, _WARNING_IDS, strict=True):
             w = d.warning[int(index)]
             if w.number:
                 said = f": {self.messages[-1].split(' The simulation')[0]}" if self.messages else ""
@@ -570,7 +575,9 @@ class _Watch:
         return self.dof_body.get(int(dof), "?")
 
 
-def _samples(ws: Workspace, qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _samples(
+    ws: Workspace, qpos: np.ndarray, qvel: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Body rotations (N, B, 4), pelvis positions (N, 3), centre of mass and its velocity (N, 3)."""
     model = ws.model
     data = _fresh(ws.kin_data)
@@ -646,7 +653,7 @@ def _share_bends(ragdoll: Ragdoll, local: np.ndarray, held: np.ndarray) -> None:
         ident = quat.identity(bend.shape[:1])
         cumulative_held = held[joints[0]]
         previous = quat.identity(bend.shape[:1])
-        for joint, weight in zip(joints, weights):
+        for joint, weight in zip(joints, weights, strict=True):
             if joint != joints[0]:
                 cumulative_held = quat.mul(cumulative_held, held[joint])
             share = quat.slerp(ident, bend, np.full(len(bend), weight))
@@ -732,7 +739,7 @@ def _step_and_sample(ws: Workspace, start: SimState, plan: _Plan, watch: _Watch)
     """The stepping loop of _run: fixed step counts to each sample, explosion checks per sample."""
     model, data = ws.model, ws.sim_data
     frame_steps = 1.0 / plan.fps / TIMESTEP
-    goals = [int(round((sample - plan.start_offset) * frame_steps)) for sample in plan.sample_offsets]
+    goals = [round((sample - plan.start_offset) * frame_steps) for sample in plan.sample_offsets]
     ctrl = _servo_setpoints(ws, plan, max(goals[-1], 1))
     step = 0
     data_ctrl = data.ctrl  # one view on MjData's buffer, not a new wrapper per step
@@ -827,7 +834,7 @@ def simulate_impact(
         )
     body = ragdoll.body_for_bone(impact.bone)
     b = impact.frame
-    c = int(round(b + window * motion.fps))
+    c = round(b + window * motion.fps)
     reach = GROUND_SPAN * motion.fps
     table = _mocap_table(ragdoll, motion, b - reach - 1, max(b + reach + 1, c + 2))
     # Servo targets: the motion continuing after B (its last pose held past its end), on a clock
@@ -875,7 +882,7 @@ def track(
         raise SimulationError(f"tracking duration must be a positive number of seconds, got {duration!r}")
     if not 0 <= target_start < target.num_frames:
         raise SimulationError(f"target start frame {target_start} is outside the target's {target.num_frames} frames")
-    n = int(round(duration * target.fps))
+    n = round(duration * target.fps)
     frames = np.clip(np.arange(target_start, target_start + n + 3), 0, target.num_frames - 1)
     plan = _Plan(
         targets=mocap_qpos(ragdoll, target, frames),

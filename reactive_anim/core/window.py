@@ -175,9 +175,7 @@ def query_from_motion(
     return Query(frame_features(resample(motion, times), roles))
 
 
-def window_costs(
-    frames: FrameFeatures, starts: np.ndarray, query: Query, wp: np.ndarray, wq: np.ndarray
-) -> np.ndarray:
+def window_costs(frames: FrameFeatures, starts: np.ndarray, query: Query, wp: np.ndarray, wq: np.ndarray) -> np.ndarray:
     """Eq. 1 (float64, (n,)) between the query and the windows of `frames` starting at `starts` (n,).
 
     wp, wq: per-joint weights (15,) from joint_weights."""

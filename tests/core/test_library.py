@@ -12,14 +12,15 @@ import numpy as np
 import pytest
 
 from reactive_anim.core import bvh, quat, search_index
-from reactive_anim.core.errors import LibraryError
 from reactive_anim.core.classes import CLASS_SLUGS
+from reactive_anim.core.errors import LibraryError
 from reactive_anim.core.library import LibrarySettings, load_library, read_chains, read_manifest
 from reactive_anim.core.search import search
 from reactive_anim.core.skeleton import Motion, Skeleton
 from reactive_anim.core.window import Query
 from tests.support.library_clips import make_clip, write_toml
 from tests.support.mocap import REPO
+
 
 @pytest.fixture
 def small_library(tmp_path: Path) -> Path:
@@ -197,10 +198,15 @@ def test_unreadable_bvh_names_the_clip(tmp_path: Path) -> None:
 def test_manifest_errors_name_the_clip(tmp_path: Path) -> None:
     make_clip(tmp_path / "a.bvh", 1, 60, 30.0)
     cases = [
-        ({"file": "a.bvh", "class": "step_back", "next": "b.bvh"}, r"clip 'a\.bvh': next = 'b\.bvh' is neither a \[\[clip\]\] nor"),
+        (
+            {"file": "a.bvh", "class": "step_back", "next": "b.bvh"},
+            r"clip 'a\.bvh': next = 'b\.bvh' is neither a \[\[clip\]\] nor",
+        ),
         ({"file": "a.bvh", "class": "step_back", "frames": [5, 2]}, r"clip 'a\.bvh': frames \[5, 2\] is not a range"),
-        ({"file": "a.bvh", "class": "step_back", "frames": [0, 500]},
-         r"clip 'a\.bvh': frames \[0, 500\] run past the file's 60 frames"),
+        (
+            {"file": "a.bvh", "class": "step_back", "frames": [0, 500]},
+            r"clip 'a\.bvh': frames \[0, 500\] run past the file's 60 frames",
+        ),
         ({"file": "a.bvh", "class": "step_back", "speed": 2}, r"clip 'a\.bvh': unknown keys speed"),
     ]
     for clip, message in cases:
@@ -236,7 +242,8 @@ def test_next_may_name_a_chained_clip_that_is_not_searched(tmp_path: Path) -> No
     make_clip(tmp_path / "fall.bvh", 1, 60, 30.0)
     make_clip(tmp_path / "getup.bvh", 2, 60, 30.0)
     (tmp_path / "library.toml").write_text(
-        '[[clip]]\nfile = "fall.bvh"\nclass = "fall_backward_sit"\nnext = "getup.bvh"\n\n[[chain]]\nfile = "getup.bvh"\n',
+        '[[clip]]\nfile = "fall.bvh"\nclass = "fall_backward_sit"\nnext = "getup.bvh"\n\n'
+        '[[chain]]\nfile = "getup.bvh"\n',
         encoding="utf-8",
     )
     lib = load_library(tmp_path, cache_dir=tmp_path / "cache")

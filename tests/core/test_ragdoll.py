@@ -64,7 +64,7 @@ def test_joint_types_and_ranges_follow_the_profile(sample_walk, profile, table):
         expected = [rng for rng in kinds if rng is not None]
         joints = [j for j in range(model.njnt) if model.jnt_bodyid[j] == body.body_id]
         assert len(joints) == len(expected), body.name
-        for j, rng in zip(joints, expected):
+        for j, rng in zip(joints, expected, strict=True):
             assert model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE
             assert np.degrees(model.jnt_range[j]) == pytest.approx(rng)
             assert model.jnt_stiffness[j] > 0 and model.dof_damping[model.jnt_dofadr[j]] > 0

@@ -50,7 +50,7 @@ def test_an_override_forces_the_class_and_f_is_the_clips_pose(walk, library, rag
     out = r.motion
     assert np.array_equal(out.local_rot[:B], walk.local_rot[:B]) and np.array_equal(out.root_pos[:B], walk.root_pos[:B])
     clip = place(library.clip_motion(r.clip, walk.fps), *r.placement)
-    frame_e = int(round((r.jump_frame + library.window - 1) / library.fps * walk.fps))
+    frame_e = round((r.jump_frame + library.window - 1) / library.fps * walk.fps)
     at_f = frame_e + (r.frame_f - r.frame_c)
     assert np.allclose(out.local_rot[r.frame_f], clip.local_rot[at_f], atol=1e-12)
     assert np.allclose(out.root_pos[r.frame_f], clip.root_pos[at_f], atol=1e-12)
@@ -90,7 +90,9 @@ def test_same_input_same_output(walk, library, ragdoll) -> None:
     impact = Impact(B, "pelvis", (0.3, 1.0, 0.0), 150.0)
     a, b = react(walk, impact, library, ragdoll=ragdoll), react(walk, impact, library, ragdoll=ragdoll)
     assert a.clip == b.clip and a.jump_frame == b.jump_frame and a.cost == b.cost
-    assert np.array_equal(a.motion.local_rot, b.motion.local_rot) and np.array_equal(a.motion.root_pos, b.motion.root_pos)
+    assert np.array_equal(a.motion.local_rot, b.motion.local_rot) and np.array_equal(
+        a.motion.root_pos, b.motion.root_pos
+    )
 
 
 @pytest.mark.parametrize(
@@ -109,7 +111,13 @@ def test_bad_impacts_name_the_impact(walk, library, ragdoll, impact, message) ->
 def test_an_impact_too_early_for_the_search_window_says_so(walk, library, ragdoll) -> None:
     """With a short reaction window at the first frame there is not a search window of motion yet."""
     with pytest.raises(ImpactError, match="too early"):
-        react(walk, Impact(0, "chest", (1, 0, 0), 50.0), library, settings=ReactionSettings(reaction_window=0.05), ragdoll=ragdoll)
+        react(
+            walk,
+            Impact(0, "chest", (1, 0, 0), 50.0),
+            library,
+            settings=ReactionSettings(reaction_window=0.05),
+            ragdoll=ragdoll,
+        )
 
 
 def test_a_zero_direction_is_an_impact_error() -> None:

@@ -619,7 +619,7 @@ def first_contact(name: str) -> int:
     (the clip's length if none)."""
     run = falls.simulate_fall(falls.FALLS[name])
     times = [t for body, t in run.first_contact.items() if not body.startswith("ankle")]
-    return int(round(min(times) * run.motion.fps)) if times else run.motion.num_frames
+    return round(min(times) * run.motion.fps) if times else run.motion.num_frames
 
 
 def held_to(motion: Motion, frames: int) -> Motion:
@@ -708,7 +708,7 @@ def test_backward_sit_ends_sitting_without_rolling_onto_the_back(clips: dict[str
     points = world_points(clips[name])
     contact = falls.simulate_fall(falls.FALLS[name]).first_contact
     assert "pelvis" in contact, f"{name}: the pelvis never reaches the floor"
-    landed = int(round(contact["pelvis"] * clips[name].fps))
+    landed = round(contact["pelvis"] * clips[name].fps)
     head = points["head"][landed:, 2]
     assert head.min() > 0.5, f"{name}: the head drops to {head.min():.2f} m at frame {landed + head.argmin()}"
 

@@ -13,11 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh, quat
+from reactive_anim.core import bvh, quat, search_index
 from reactive_anim.core.errors import LibraryError
-from reactive_anim.core.library import load_library
-from reactive_anim.core import search_index
-from reactive_anim.core.library import Library
+from reactive_anim.core.library import Library, load_library
 from reactive_anim.core.search import search, search_with_fallback
 from reactive_anim.core.skeleton import Motion
 from reactive_anim.core.window import (
@@ -70,7 +68,7 @@ def find_best(
 
 
 def assert_same(library, query: Query, classes=None) -> None:
-    start, cost, evaluated = find_best(library, query, classes)
+    start, cost, _ = find_best(library, query, classes)
     ref_start, ref_cost = reference_search(library, query, classes)
     assert start == ref_start, f"fast {start} (cost {cost}) vs reference {ref_start} (cost {ref_cost})"
     assert cost == pytest.approx(ref_cost, rel=1e-5, abs=1e-9)
@@ -78,7 +76,7 @@ def assert_same(library, query: Query, classes=None) -> None:
 
 def test_weights_are_table2() -> None:
     wp, wq = joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS)
-    by_role = dict(zip(SEARCH_ROLES, zip(wp, wq)))
+    by_role = dict(zip(SEARCH_ROLES, zip(wp, wq, strict=True), strict=True))
     assert by_role["neck"] == (0.4, 0.3) and by_role["back"] == (0.4, 0.4) and by_role["waist"] == (0.6, 0.6)
     for side in "lr":
         assert by_role[f"hip_{side}"] == (0.8, 1.0) and by_role[f"knee_{side}"] == (0.6, 0.8)
@@ -107,7 +105,9 @@ def assert_pivot_bounds_hold(library, queries) -> None:
     wp, wq = joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS)
     assert len(index.pivots) > 0
     for j, pivot in enumerate(index.pivots):
-        exact = window_costs(library.frames, index.starts, Query(library.features(pivot, pivot + library.window)), wp, wq)
+        exact = window_costs(
+            library.frames, index.starts, Query(library.features(pivot, pivot + library.window)), wp, wq
+        )
         assert np.max(np.abs(exact - index.pivot_dist[:, j])) < index.pivot_margin / 10
     cands = np.arange(len(index.starts))
     block = np.searchsorted(index.firsts[0], cands, side="right") - 1

@@ -63,7 +63,7 @@ def clips() -> dict[str, Clip]:
 
 def character_axes(clip: Clip, frame: float) -> tuple[np.ndarray, np.ndarray]:
     """(forward, left) horizontal unit vectors of the character at a frame, from its hip line."""
-    positions = clip.motion.global_positions()[int(round(frame))]
+    positions = clip.motion.global_positions()[round(frame)]
     index = clip.motion.skeleton.index
     left = positions[index(clip.ragdoll.roles["hip_l"])] - positions[index(clip.ragdoll.roles["hip_r"])]
     left[2] = 0.0
@@ -108,7 +108,7 @@ def test_forward_from_the_hip_line_is_the_way_the_walk_goes(clips):
     pelvis travels over the half second around B (within 18 degrees; the hips swing ~5)."""
     walk = clips["walk"]
     forward, _ = character_axes(walk, IMPACT_FRAME)
-    b, half = int(round(IMPACT_FRAME)), int(walk.motion.fps * 0.25)
+    b, half = round(IMPACT_FRAME), int(walk.motion.fps * 0.25)
     travel = walk.motion.root_pos[b + half] - walk.motion.root_pos[b - half]
     travel[2] = 0.0
     assert forward @ travel / np.linalg.norm(travel) > 0.95
@@ -207,7 +207,7 @@ def test_same_push_twice_gives_bit_identical_results(clips):
         return [r.frames, r.qpos, r.qvel, r.com, r.com_velocity, m.root_pos, m.local_rot, m.local_pos,
                 r.state.qpos, r.state.qvel]  # fmt: skip
 
-    for a, b in zip(arrays(first), arrays(second)):
+    for a, b in zip(arrays(first), arrays(second), strict=True):
         assert np.array_equal(a, b)
     assert first.state.floor == second.state.floor
     assert np.all(np.isfinite(first.qpos))

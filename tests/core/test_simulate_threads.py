@@ -42,9 +42,18 @@ def _arrays(result: SimResult) -> list[np.ndarray]:
 
 
 def _assert_identical(a: tuple[SimResult, ...], b: tuple[SimResult, ...]) -> None:
-    for x, y in zip(a, b):
-        for u, v in zip(_arrays(x), _arrays(y)):
+    for x, y in zip(a, b, strict=True):
+        for u, v in zip(_arrays(x), _arrays(y), strict=True):
             assert np.array_equal(u, v)
+
+
+def _work(ragdoll, walk, k: int, own: bool, barrier: threading.Barrier, out: list) -> None:
+    """One thread: wait for the others, then react to impact k three times (so the runs overlap
+    whatever the scheduling), with its own workspace or none."""
+    workspace = Workspace(ragdoll) if own else None
+    barrier.wait()
+    for _ in range(3):
+        out.append(_react(ragdoll, walk, IMPACTS[k], workspace))
 
 
 def test_two_threads_at_once_match_one_after_the_other(ragdoll, walk):
@@ -55,13 +64,10 @@ def test_two_threads_at_once_match_one_after_the_other(ragdoll, walk):
         results: dict[int, list] = {k: [] for k in range(len(IMPACTS))}
         barrier = threading.Barrier(len(IMPACTS))
 
-        def work(k: int, own: bool = own_workspace) -> None:
-            workspace = Workspace(ragdoll) if own else None
-            barrier.wait()
-            for _ in range(3):  # several rounds, so the runs overlap whatever the scheduling
-                results[k].append(_react(ragdoll, walk, IMPACTS[k], workspace))
-
-        threads = [threading.Thread(target=work, args=(k,)) for k in range(len(IMPACTS))]
+        threads = [
+            threading.Thread(target=_work, args=(ragdoll, walk, k, own_workspace, barrier, results[k]))
+            for k in range(len(IMPACTS))
+        ]
         for t in threads:
             t.start()
         for t in threads:
@@ -79,7 +85,7 @@ def test_a_simulation_leaves_the_ragdoll_unchanged(ragdoll, walk):
     timestep = model.opt.timestep
     _react(ragdoll, walk, IMPACTS[0])
     after = (model.body_pos, model.actuator_gainprm, model.actuator_biasprm, model.jnt_range)
-    assert all(np.array_equal(x, y) for x, y in zip(before, after))
+    assert all(np.array_equal(x, y) for x, y in zip(before, after, strict=True))
     assert model.opt.timestep == timestep
     with pytest.raises(ValueError):
         ragdoll.limit_lo[0] = 0.0  # the ragdoll's arrays are read-only

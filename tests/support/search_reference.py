@@ -13,7 +13,6 @@ from __future__ import annotations
 import numpy as np
 
 from reactive_anim.core import quat
-from reactive_anim.core.library import Library
 from reactive_anim.core.window import TABLE2_POSITION_WEIGHTS, TABLE2_ROTATION_WEIGHTS, Query, joint_weights
 
 
@@ -23,8 +22,13 @@ def _turn(points: np.ndarray, yaw: float) -> np.ndarray:
     return points @ rz.T
 
 
-def reference_cost(library, start: int, query: Query, position_weights=TABLE2_POSITION_WEIGHTS,
-                   rotation_weights=TABLE2_ROTATION_WEIGHTS) -> float:
+def reference_cost(
+    library,
+    start: int,
+    query: Query,
+    position_weights=TABLE2_POSITION_WEIGHTS,
+    rotation_weights=TABLE2_ROTATION_WEIGHTS,
+) -> float:
     """Eq. 1 between the query and the library window starting at flat frame `start`."""
     wp, wq = joint_weights(position_weights), joint_weights(rotation_weights)
     window = query.window

@@ -46,7 +46,6 @@ from .poses import pose, pose_vector, posed
 from .skeleton import FPS, SIDES, UP, X_AXIS, clip_motion, heading, sample_skeleton
 
 
-
 @lru_cache(maxsize=1)
 def _start_motions() -> dict[str, Motion]:
     return {"idle": idle_clip(), "walk": walk_clip()}
