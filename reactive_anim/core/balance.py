@@ -29,8 +29,6 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from . import quat
-
 GRAVITY = 9.81
 ASSIST_STEPS = 4
 
@@ -60,36 +58,59 @@ class AssistController:
         self.largest_fraction = 0.0
 
     def apply(self, data: mujoco.MjData, frame: float, fps: float, floor: float) -> None:
-        """Set the pelvis' applied force and torque for the target at `frame` (fractional)."""
-        target, velocity = self._target(frame, fps)
-        pos, q = data.qpos[0:3], data.qpos[3:7]
-        height = max(float(target[2]) - floor, 0.1)
-        lever = self.weight * height  # toppling stiffness m g h, N·m/rad
-        error = quat.mul(target[3:7], quat.conj(q))
-        error = error if error[0] >= 0 else -error
-        rotvec = (
-            2.0 * error[1:] * (math.atan2(np.linalg.norm(error[1:]), error[0]) / max(np.linalg.norm(error[1:]), 1e-12))
-        )
-        tilt = math.hypot(rotvec[0], rotvec[1])
-        fade = float(np.clip((self.assist.fade_end - tilt) / (self.assist.fade_end - self.assist.fade_start), 0.0, 1.0))
-        spin = quat.rotate(q, data.qvel[3:6])  # free-joint angular velocity is in the body frame
-        inertia = self.mass * height * height
-        kr = 2.0 * lever
-        torque = kr * rotvec - 2.0 * math.sqrt(kr * inertia) * spin
-        torque[2] = 0.0
-        torque *= min(1.0, self.assist.max_fraction * lever / max(float(np.linalg.norm(torque)), 1e-12)) * fade
-        lift = self.kz * (target[2] - pos[2]) + self.cz * (velocity - data.qvel[2])
-        lift = float(np.clip(lift, 0.0, self.assist.max_fraction * self.weight)) * fade
-        data.xfrc_applied[self.body] = (0.0, 0.0, lift, *torque)
-        used = max(lift / self.weight, float(np.linalg.norm(torque)) / lever)
-        self.largest_fraction = max(self.largest_fraction, used)
+        """Set the pelvis' applied force and torque for the target at `frame` (fractional).
 
-    def _target(self, frame: float, fps: float) -> tuple[np.ndarray, float]:
-        """The target pelvis (7,) at a fractional frame, and its vertical speed."""
+        Plain float arithmetic on 3- and 4-vectors: numpy's per-call overhead would cost more than
+        the simulation steps it runs between."""
+        target, rising = self._target(frame, fps)
+        qw, qx, qy, qz = (float(v) for v in data.qpos[3:7])
+        tw, tx, ty, tz = target[3:7]
+        # Rotation from the pelvis' orientation to the target's: t * conj(q), as a rotation vector.
+        ew = tw * qw + tx * qx + ty * qy + tz * qz
+        ex = -tw * qx + tx * qw - ty * qz + tz * qy
+        ey = -tw * qy + tx * qz + ty * qw - tz * qx
+        if ew < 0.0:
+            ew, ex, ey = -ew, -ex, -ey
+        sine = math.sqrt(ex * ex + ey * ey + (-tw * qz - tx * qy + ty * qx + tz * qw) ** 2)
+        scale = 2.0 * math.atan2(sine, ew) / sine if sine > 1e-12 else 2.0
+        rx, ry = ex * scale, ey * scale  # pitch and roll; the heading (z) is left free
+        tilt = math.hypot(rx, ry)
+        fade = min(1.0, max(0.0, (self.assist.fade_end - tilt) / (self.assist.fade_end - self.assist.fade_start)))
+        # World angular velocity: the free joint's is in the body frame, rotate it by q.
+        wx, wy, wz = (float(v) for v in data.qvel[3:6])
+        spin_x, spin_y = _rotate_xy(qw, qx, qy, qz, wx, wy, wz)
+        height = max(target[2] - floor, 0.1)
+        lever = self.weight * height  # toppling stiffness m g h, N·m/rad
+        kr = 2.0 * lever
+        damping = 2.0 * math.sqrt(kr * self.mass * height * height)
+        torque_x, torque_y = kr * rx - damping * spin_x, kr * ry - damping * spin_y
+        size = math.hypot(torque_x, torque_y)
+        cap = self.assist.max_fraction * lever
+        factor = fade * (min(1.0, cap / size) if size > 0.0 else 0.0)
+        torque_x, torque_y = torque_x * factor, torque_y * factor
+        lift = self.kz * (target[2] - float(data.qpos[2])) + self.cz * (rising - float(data.qvel[2]))
+        lift = min(max(lift, 0.0), self.assist.max_fraction * self.weight) * fade
+        data.xfrc_applied[self.body] = (0.0, 0.0, lift, torque_x, torque_y, 0.0)
+        self.largest_fraction = max(self.largest_fraction, lift / self.weight, size * factor / lever)
+
+    def _target(self, frame: float, fps: float) -> tuple[list[float], float]:
+        """The target pelvis (x, y, z, qw, qx, qy, qz) at a fractional frame (orientation of the
+        nearer frame: they are a frame apart), and its vertical speed."""
         last = len(self.targets) - 1
-        i = int(np.clip(np.floor(frame), 0, max(last - 1, 0)))
+        i = min(max(math.floor(frame), 0), max(last - 1, 0))
         j = min(i + 1, last)
-        s = float(np.clip(frame - i, 0.0, 1.0))
-        row = self.targets[i] + (self.targets[j] - self.targets[i]) * s
-        row[3:7] = quat.slerp(self.targets[i, 3:7], self.targets[j, 3:7], s)
-        return row, float(self.targets[j, 2] - self.targets[i, 2]) * fps
+        s = min(max(frame - i, 0.0), 1.0)
+        a, b = self.targets[i], self.targets[j]
+        z = float(a[2] + (b[2] - a[2]) * s)
+        q = b if s >= 0.5 else a
+        return [float(a[0]), float(a[1]), z, *(float(v) for v in q[3:7])], float(b[2] - a[2]) * fps
+
+
+def _rotate_xy(qw: float, qx: float, qy: float, qz: float, vx: float, vy: float, vz: float) -> tuple[float, float]:
+    """x and y of the vector (vx, vy, vz) rotated by the unit quaternion q."""
+    # v' = v + 2 w (u x v) + 2 u x (u x v), u = (qx, qy, qz)
+    cx, cy, cz = qy * vz - qz * vy, qz * vx - qx * vz, qx * vy - qy * vx
+    return (
+        vx + 2.0 * (qw * cx + qy * cz - qz * cy),
+        vy + 2.0 * (qw * cy + qz * cx - qx * cz),
+    )

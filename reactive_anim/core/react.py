@@ -37,7 +37,6 @@ from .errors import Cancelled, ImpactError, LibraryError, SkeletonError
 from .impact import Impact
 from .library import Library
 from .ragdoll import Ragdoll, build_ragdoll
-from .roles import assign_roles
 from .search import Match, search, search_with_fallback
 from .simulate import SimResult, Workspace, simulate_impact, track
 from .skeleton import Motion
@@ -178,7 +177,7 @@ def react(
     clock.lap("bc")
     probabilities = _probabilities(classifier, before, bc, ragdoll)
     clock.lap("classify")
-    query = _query_ending_at(before, frame_c, library, impact)
+    query = _query_ending_at(before, frame_c, library, impact, ragdoll.roles)
     match = _search(library, query, impact, probabilities, settings)
     clock.lap("search")
     clip = place(library.clip_motion(match.clip, motion.fps), match.yaw, match.offset)
@@ -191,9 +190,11 @@ def react(
     transition = blend(cd.motion, clip_ef, fade_weights(steps + 1))
     out = _join(before.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, clip.num_frames))
     clock.lap("blend")
-    out, chained = _chain(out, library, match, motion.fps, settings)
+    out, chained = _chain(out, library, match, ragdoll.roles, settings)
     end_frame = out.num_frames - 1
-    out, resumed_at = _resume_or_hold(out, source or motion, impact, library, match, chained, settings)
+    standing = chained is not None or not match.reaction_class.startswith("fall_")
+    window = max(2, round(library.window * motion.fps / library.fps)) if settings.resume and standing else 0
+    out, resumed_at = _resume_or_hold(out, source or motion, int(np.ceil(impact.frame)), window, ragdoll.roles)
     clock.lap("splice")
     return Reaction(
         impact=impact,
@@ -286,7 +287,7 @@ def _probabilities(
     return None if classifier is None else np.asarray(classifier.classify(before, bc, ragdoll), dtype=float)
 
 
-def _query_ending_at(before: Motion, frame_c: int, library: Library, impact: Impact) -> Query:
+def _query_ending_at(before: Motion, frame_c: int, library: Library, impact: Impact, roles: dict[str, str]) -> Query:
     """The library-rate window whose last frame is C, from the motion with BC in it."""
     start = frame_c - (library.window - 1) * before.fps / library.fps
     if start < 0:
@@ -294,7 +295,7 @@ def _query_ending_at(before: Motion, frame_c: int, library: Library, impact: Imp
             f"impact at frame {impact.frame:g} on '{impact.bone}' is too early: the search needs "
             f"{(library.window - 1) / library.fps:.2f} s of motion before the end of the reaction window"
         )
-    return query_from_motion(before, start, library.window, library.fps)
+    return query_from_motion(before, start, library.window, library.fps, roles)
 
 
 def _search(
@@ -317,14 +318,15 @@ def _search(
 
 
 def _chain(
-    out: Motion, library: Library, match: Match, fps: float, settings: ReactionSettings
+    out: Motion, library: Library, match: Match, roles: dict[str, str], settings: ReactionSettings
 ) -> tuple[Motion, str | None]:
     """The clip's `next` (a get-up) placed where the reaction ends and faded in."""
     name = library.clips[match.clip_index].next
     if name is None:
         return out, None
+    fps = out.fps
     follow = library.clip_motion(name, fps)
-    yaw, offset = _alignment(out.slice(out.num_frames - 1, out.num_frames), follow.slice(0, 1))
+    yaw, offset = _alignment(out.slice(out.num_frames - 1, out.num_frames), follow.slice(0, 1), roles)
     follow = place(follow, yaw, offset)
     overlap = max(1, min(round(settings.chain_blend * fps), follow.num_frames - 1, out.num_frames - 1))
     tail = out.slice(out.num_frames - 1, out.num_frames)
@@ -334,20 +336,12 @@ def _chain(
 
 
 def _resume_or_hold(
-    out: Motion,
-    source: Motion,
-    impact: Impact,
-    library: Library,
-    match: Match,
-    chained: str | None,
-    settings: ReactionSettings,
+    out: Motion, source: Motion, first: int, window: int, roles: dict[str, str]
 ) -> tuple[Motion, int | None]:
-    """Resume the source after a standing ending; else hold the last pose up to the source's end."""
-    standing = chained is not None or not match.reaction_class.startswith("fall_")
-    first = int(np.ceil(impact.frame))
-    window = max(2, round(library.window * source.fps / library.fps))
-    if settings.resume and standing and source.num_frames - first > window:
-        return _resume(out, source, first, window)
+    """Resume the source from frame `first` on over a `window`-frame fade (0: do not resume, as
+    after a fall with nothing chained); else hold the last pose up to the source's end."""
+    if window and source.num_frames - first > window:
+        return _resume(out, source, first, window, roles)
     missing = source.num_frames - out.num_frames
     if missing > 0:
         last = out.slice(out.num_frames - 1, out.num_frames)
@@ -355,10 +349,9 @@ def _resume_or_hold(
     return out, None
 
 
-def _resume(out: Motion, source: Motion, first: int, window: int) -> tuple[Motion, int]:
+def _resume(out: Motion, source: Motion, first: int, window: int, roles: dict[str, str]) -> tuple[Motion, int]:
     """Align the source's best re-entry window (Eq. 1, starting at or after `first`) with the last
     `window` frames of `out`, fade over that window, and play the source on from there."""
-    roles = source.skeleton.roles or assign_roles(source.skeleton)
     tail = out.slice(out.num_frames - window, out.num_frames)
     query = Query(frame_features(tail, roles))
     candidates = frame_features(source.slice(first, source.num_frames), roles)
@@ -366,7 +359,7 @@ def _resume(out: Motion, source: Motion, first: int, window: int) -> tuple[Motio
     costs = window_costs(candidates, starts, query,
                          joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS))  # fmt: skip
     entry = first + int(np.argmin(costs))
-    yaw, offset = _alignment(tail.slice(0, 1), source.slice(entry, entry + 1))
+    yaw, offset = _alignment(tail.slice(0, 1), source.slice(entry, entry + 1), roles)
     resumed = place(source.slice(entry, source.num_frames), yaw, offset)
     faded = blend(tail, resumed.slice(0, window), fade_weights(window))
     rest = resumed.slice(window, resumed.num_frames)
@@ -377,10 +370,9 @@ def _resume(out: Motion, source: Motion, first: int, window: int) -> tuple[Motio
 # Helpers
 
 
-def _alignment(anchor: Motion, moving: Motion) -> tuple[float, tuple[float, float]]:
+def _alignment(anchor: Motion, moving: Motion, roles: dict[str, str]) -> tuple[float, tuple[float, float]]:
     """(yaw, offset) that put the first frame of `moving` on the first frame of `anchor`: same
     pelvis ground point and heading (window.py's heading frame)."""
-    roles = anchor.skeleton.roles or assign_roles(anchor.skeleton)
     a, m = frame_features(anchor.slice(0, 1), roles), frame_features(moving.slice(0, 1), roles)
     yaw = float(a.heading[0] - m.heading[0])
     offset = a.ground[0] - yaw_rotate(yaw, np.append(m.ground[0], 0.0))[:2]

@@ -1,9 +1,8 @@
 """Balance during CD (core/balance.py): the root assist keeps a tracked character up, a small push
 does not topple it, a large one still does, nothing skates or sinks. The sample walk and idle only.
 
-"Kept up" over a run: the pelvis within 10 cm of the target's height at every frame and the mean
-joint error (role joints, relative to the pelvis' ground point, so a walker slowed or sped by the
-physics is not counted as an error) under 5 cm averaged over the run so far.
+"Kept up": see tests/support/tracking.py (pelvis within 10 cm of the target's height, mean joint
+error under 5 cm).
 """
 
 from __future__ import annotations
@@ -18,6 +17,7 @@ from reactive_anim.core.ragdoll import build_ragdoll
 from reactive_anim.core.simulate import SimResult, Workspace, simulate_impact, track
 from reactive_anim.core.skeleton import Motion
 from tests.support.mocap import REPO
+from tests.support.tracking import kept_up_seconds
 
 ASSIST = RootAssist()
 
@@ -27,23 +27,6 @@ def clip(request):
     motion = bvh.read_bvh(REPO / "sample_clips" / f"{request.param}.bvh")
     ragdoll = build_ragdoll(motion.skeleton, reference=motion)
     return request.param, motion, ragdoll, Workspace(ragdoll)
-
-
-def kept_up_seconds(result: SimResult, target: Motion, ragdoll) -> float:
-    frames = np.minimum(result.frames.astype(int), target.num_frames - 1)
-    sk = target.skeleton
-    joints = [sk.index(n) for n in ragdoll.roles.values()]
-    pelvis = sk.index(ragdoll.roles["pelvis"])
-    sim, ref = result.motion.global_positions(), target.global_positions()[frames]
-    flat = np.array([1.0, 1.0, 0.0])
-    pose_error = np.linalg.norm(
-        (sim[:, joints] - sim[:, pelvis : pelvis + 1] * flat) - (ref[:, joints] - ref[:, pelvis : pelvis + 1] * flat),
-        axis=-1,
-    ).mean(axis=1)
-    running = np.cumsum(pose_error) / np.arange(1, len(pose_error) + 1)
-    height = np.abs(sim[:, pelvis, 2] - ref[:, pelvis, 2])
-    bad = np.flatnonzero((running > 0.05) | (height > 0.10))
-    return (bad[0] if len(bad) else len(frames)) / target.fps
 
 
 def forward(motion: Motion, ragdoll, frame: int) -> np.ndarray:

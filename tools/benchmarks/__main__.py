@@ -5,7 +5,8 @@
     .venv/bpy-5.0/bin/python -m tools.benchmarks search     # the same, as a module
 
 Groups: bvh (parse throughput), blender (import, read_motion, write_motion in bpy), sim (ragdoll
-build, step, BC and CD windows), search (the jump search against the reference). Real mocap comes
+build, step, BC and CD windows), search (the jump search against the reference), react (the
+reaction pipeline per impact and a 20-impact bake). Real mocap comes
 from ../shared/mocap (test and benchmark data only); a group that needs it is skipped with a note
 where it is absent. Each timing is the best of several runs (the least disturbed by other work on
 the machine), with the run count printed beside it.
@@ -19,6 +20,7 @@ from collections.abc import Callable
 from .blender import bench_blender
 from .bvh import bench_bvh
 from .common import print_table
+from .react import bench_react
 from .search import bench_search
 from .sim import bench_sim
 
@@ -27,6 +29,7 @@ GROUPS: dict[str, Callable[[], None]] = {
     "blender": bench_blender,
     "sim": bench_sim,
     "search": bench_search,
+    "react": bench_react,
 }
 
 

@@ -1,6 +1,7 @@
 """Simulation figures: ragdoll build and MJCF compile time, the cost of a simulation Workspace, us
 per step, wall time of a 0.25 s BC window and a 0.5 s CD transition, for the sample skeleton and
-the largest shared skeleton; and how long pure PD tracking (CD) of a real walk stays within bounds.
+the largest shared skeleton, with the ragdoll's degrees of freedom; and how long CD tracking keeps
+a walker or a standing character up, pure PD against PD with the root assist.
 
 Runs reuse one Workspace (simulate.Workspace: the run's own model copy and MjData), as a worker
 thread does, so the BC and CD figures exclude making one; that cost is its own figure.
@@ -14,15 +15,18 @@ import mujoco
 import numpy as np
 
 from reactive_anim.core import bvh
+from reactive_anim.core.balance import RootAssist
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.ragdoll import build_ragdoll
 from reactive_anim.core.simulate import Workspace, simulate_impact, state_from_mocap, track
 from tests.support.mocap import MOCAP, REPO, mocap_files
+from tests.support.tracking import kept_up_seconds
 
 from .common import best_of, report, skipped
 
 RUNS = 5
 BANDAI_WALK = MOCAP / "bandai_namco" / "dataset-1" / "dataset-1_walk_normal_001.bvh"
+ICLONE_WALK = MOCAP / "cmu_iclone" / "002_01.bvh"
 
 
 def _largest_skeleton() -> Path | None:
@@ -78,7 +82,8 @@ def _bench_clip(label: str, path: Path, use_reference: bool) -> None:
         for _ in range(steps):
             mujoco.mj_step(workspace.model, data)
 
-    report("sim", "time per step", best_of(stepping, RUNS) / steps * 1e6, "us", bodies=len(ragdoll.bodies), **context)
+    per_step = best_of(stepping, RUNS) / steps * 1e6
+    report("sim", "time per step", per_step, "us", bodies=len(ragdoll.bodies), dof=ragdoll.model.nv, **context)
 
     bc_time = best_of(lambda: simulate_impact(ragdoll, motion, impact, window=0.25, workspace=workspace), RUNS)
     report("sim", "BC window 0.25 s (state, impulse, steps, output Motion)", bc_time * 1e3, "ms", **context)
@@ -92,29 +97,29 @@ def _bench_clip(label: str, path: Path, use_reference: bool) -> None:
 
 
 def _bench_tracking_hold() -> None:
-    """How long pure PD tracking of a real walk stays within 5 cm mean joint error and 10 cm pelvis
-    height (no balance feedback, so it drifts): tells the pipeline how long CD may run."""
-    motion = bvh.read_bvh(BANDAI_WALK)
-    ragdoll = build_ragdoll(motion.skeleton, reference=motion)
-    workspace = Workspace(ragdoll)
-    joints = [motion.skeleton.index(n) for n in ragdoll.roles.values()]
-    pelvis = motion.skeleton.index(ragdoll.roles["pelvis"])
-    truth = motion.global_positions()
-    holds = []
-    for start in range(10, motion.num_frames - 70, 10):
-        result = track(ragdoll, motion, motion, 2.0, target_start=start, start_frame=start, workspace=workspace)
-        frames = result.frames.astype(int)
-        inside = frames < motion.num_frames
-        sim = result.motion.global_positions()[inside]
-        ref = truth[frames[inside]]
-        error = np.linalg.norm(sim[:, joints] - ref[:, joints], axis=-1).mean(axis=1)
-        height = np.abs(sim[:, pelvis, 2] - ref[:, pelvis, 2])
-        outside = (error > 0.05) | (height > 0.10)
-        holds.append((np.argmax(outside) if outside.any() else len(error)) / motion.fps)
-    context = {"clip": BANDAI_WALK.name, "starts": len(holds)}
-    report("sim", "CD tracking within bounds, median", float(np.median(holds)), "s", **context)
-    report("sim", "CD tracking within bounds, min", float(np.min(holds)), "s", **context)
-    report("sim", "CD tracking within bounds, max", float(np.max(holds)), "s", **context)
+    """How long CD tracking keeps a character up (tests/support/tracking.py), pure PD (the paper)
+    against PD with the root assist (balance.py), from 12 start frames of each clip: tells how long
+    the transition may run, and what the assist buys."""
+    clips = [REPO / "sample_clips" / "walk.bvh", REPO / "sample_clips" / "idle.bvh"]
+    clips += [p for p in (BANDAI_WALK, ICLONE_WALK) if p.is_file()]
+    for path in clips:
+        motion = bvh.read_bvh(path)
+        ragdoll = build_ragdoll(motion.skeleton, reference=motion)
+        workspace = Workspace(ragdoll)
+        seconds = min(2.0, 0.6 * (motion.num_frames - 1) / motion.fps)
+        starts = np.linspace(0.2 * motion.fps, motion.num_frames - 1 - seconds * motion.fps, 12).astype(int)
+        for label, assist in (("pure PD", None), ("PD + root assist", RootAssist())):
+            held, fraction = [], 0.0
+            for start in starts:
+                result = track(ragdoll, motion, motion, seconds, target_start=int(start), start_frame=float(start),
+                               assist=assist, workspace=workspace)  # fmt: skip
+                held.append(kept_up_seconds(result, motion, ragdoll))
+                fraction = max(fraction, result.assist_fraction)
+            context = {"clip": path.name, "starts": len(starts), "run_seconds": round(seconds, 2)}
+            report("sim", f"CD kept up, {label}, min", float(np.min(held)), "s", **context)
+            report("sim", f"CD kept up, {label}, median", float(np.median(held)), "s", **context)
+            if assist is not None:
+                report("sim", "largest root assist, fraction of body weight", fraction, "", **context)
 
 
 def bench_sim() -> None:
@@ -125,7 +130,4 @@ def bench_sim() -> None:
         skipped("sim", "largest shared skeleton")
     else:
         _bench_clip(largest.name, largest, use_reference=True)
-    if BANDAI_WALK.is_file():
-        _bench_tracking_hold()
-    else:
-        print(f"# sim: tracking figure skipped, {BANDAI_WALK} is absent")
+    _bench_tracking_hold()
