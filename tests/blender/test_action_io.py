@@ -10,6 +10,7 @@ from reactive_anim.blender import action_io, bvh_import
 from reactive_anim.core import bvh, quat
 from reactive_anim.core.errors import SkeletonError
 from reactive_anim.core.skeleton import Motion
+from tests.support.actions import keyframes
 from tests.support.mocap import require_mocap
 
 # Three skeletons from three datasets: CMU cgspeed (31 joints, ZYX, only the root translated),
@@ -19,24 +20,6 @@ CROSS_CHECK_FILES = [
     "bandai_namco/dataset-2/dataset-2_walk-turn-left_normal_001.bvh",
     "cmu_iclone/007_01.bvh",
 ]
-
-
-def _keyframes(action: bpy.types.Action) -> dict[tuple[str, int], np.ndarray]:
-    """Every key of every F-curve of an action, whichever action API this Blender has."""
-    curves = []
-    if hasattr(action, "layers") and action.layers:
-        for layer in action.layers:
-            for strip in layer.strips:
-                for bag in strip.channelbags:
-                    curves.extend(bag.fcurves)
-    else:
-        curves = list(action.fcurves)
-    out = {}
-    for fc in curves:
-        co = np.empty(len(fc.keyframe_points) * 2, dtype=np.float32)
-        fc.keyframe_points.foreach_get("co", co)
-        out[(fc.data_path, fc.array_index)] = co
-    return out
 
 
 @pytest.mark.parametrize("relative", CROSS_CHECK_FILES)
@@ -59,7 +42,7 @@ def test_write_then_read_round_trip_leaves_source_untouched():
     path = require_mocap("bandai_namco/dataset-1/dataset-1_walk_normal_002.bvh")
     armature = bvh_import.import_bvh(bpy.context, path)
     source = armature.animation_data.action
-    before = _keyframes(source)
+    before = keyframes(source)
     motion = action_io.read_motion(armature)
     assert motion.local_pos is not None  # this dataset animates every joint's translation
 
@@ -71,9 +54,9 @@ def test_write_then_read_round_trip_leaves_source_untouched():
     assert np.abs(again.global_positions() - motion.global_positions()).max() < 1e-5
     assert quat.angle_between(again.local_rot, motion.local_rot).max() < 1e-5
     assert np.abs(again.joint_offsets() - motion.joint_offsets()).max() < 1e-5
-    after = _keyframes(source)
+    after = keyframes(source)
     assert after.keys() == before.keys()
-    assert all(np.array_equal(after[k], before[k]) for k in before)
+    assert all(after[k] == before[k] for k in before)
 
 
 def _rotated_scaled_rig() -> bpy.types.Object:

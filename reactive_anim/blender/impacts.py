@@ -1,0 +1,234 @@
+"""Impact markers: scene timeline markers that carry an impact (DESIGN.md, "The Blender layer").
+
+A marker is an impact marker when its `reactive_anim` property group has a uid. The group holds what
+core.impact.Impact needs (bone, world direction, strength in N·s, optional reaction class) plus the
+name of the armature it hits, so one scene can hold impacts for several characters; the marker's
+own frame is the impact's frame. Markers take no ID properties (`marker["x"]` raises), but a
+PointerProperty registered on bpy.types.TimelineMarker is saved in the .blend.
+
+Frames: a marker sits on the scene's timeline; the motion read from an action starts at the
+action's first frame, so the core Impact's frame is `marker.frame - first`.
+"""
+
+# Blender declares properties as annotations holding calls (`bone: StringProperty(...)`), which are
+# not type expressions; pyright is told so for this file only.
+# pyright: reportInvalidTypeForm=false
+
+from __future__ import annotations
+
+import uuid
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, cast
+
+import bpy
+from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty, IntProperty, StringProperty
+
+from ..core.classes import CLASS_SLUGS
+from ..core.errors import ImpactError, ReactiveAnimError, SkeletonError
+from ..core.impact import Impact
+
+if TYPE_CHECKING:
+    from bpy._typing.rna_enums import OperatorReturnItems  # fake-bpy-module's name for the result set
+
+AUTO = "auto"
+DEFAULT_STRENGTH = 100.0  # N·s, a strong push (core/impact.py gives the scale)
+
+# Enum items carry explicit numbers: a .blend stores an enum by number, so the numbers must never
+# change when items are added or reordered. 0 is "let the classifier decide".
+REACTION_ITEMS = [(AUTO, "Automatic", "The classifier picks the reaction class", 0)] + [
+    (slug, slug.replace("_", " ").capitalize(), f"Force the '{slug}' reaction class", k + 1)
+    for k, slug in enumerate(CLASS_SLUGS)
+]
+
+
+class REACTIVE_ANIM_PG_impact(bpy.types.PropertyGroup):
+    """The impact a timeline marker carries (empty uid: an ordinary marker)."""
+
+    armature: StringProperty(name="Armature", description="Name of the armature object this impact hits")
+    bone: StringProperty(name="Bone", description="The bone that is hit")
+    direction: FloatVectorProperty(
+        name="Direction",
+        description="World direction of the push (Z up); its length does not matter",
+        size=3,
+        subtype="XYZ",
+        default=(1.0, 0.0, 0.0),
+    )
+    strength: FloatProperty(
+        name="Strength",
+        description="Impulse in N·s: 30 is a shove, 100 a strong push, 300 a tackle",
+        default=DEFAULT_STRENGTH,
+        min=0.0,
+        soft_min=10.0,
+        soft_max=400.0,
+    )
+    reaction: EnumProperty(
+        name="Reaction", description="Force a reaction class, or let the classifier decide", items=REACTION_ITEMS
+    )
+    uid: StringProperty(name="UID", description="Stable identifier of this impact (markers can be renamed)")
+
+
+def impact_data(marker: bpy.types.TimelineMarker) -> REACTIVE_ANIM_PG_impact:
+    """The marker's impact properties (registered as `TimelineMarker.reactive_anim`)."""
+    return cast(REACTIVE_ANIM_PG_impact, marker.reactive_anim)  # pyright: ignore[reportAttributeAccessIssue]
+
+
+def is_impact_marker(marker: bpy.types.TimelineMarker) -> bool:
+    return bool(impact_data(marker).uid)
+
+
+# ---------------------------------------------------------------------------------------------
+# Add, find, read, remove
+
+
+def add_impact(
+    scene: bpy.types.Scene,
+    armature: bpy.types.Object,
+    bone: str,
+    frame: int,
+    direction: Sequence[float],
+    strength: float = DEFAULT_STRENGTH,
+    reaction: str | None = None,
+    name: str = "",
+) -> bpy.types.TimelineMarker:
+    """A new impact marker on `scene`'s timeline; errors name the bone or value at fault.
+
+    reaction: a class slug from CLASS_SLUGS, or None / "auto" to let the classifier decide.
+    name: the marker's name (default `hit_01`, `hit_02`, ... the first free one).
+    """
+    data = armature.data
+    if not isinstance(data, bpy.types.Armature):
+        raise SkeletonError(f"object '{armature.name}' is not an armature")
+    if bone not in data.bones:
+        raise ImpactError(f"armature '{armature.name}' has no bone '{bone}'")
+    reaction = None if reaction in (None, "", AUTO) else reaction
+    if reaction is not None and reaction not in CLASS_SLUGS:
+        raise ImpactError(f"unknown reaction '{reaction}'; classes are: {AUTO}, {', '.join(CLASS_SLUGS)}")
+    Impact(0.0, bone, cast(tuple[float, float, float], tuple(direction)), strength, reaction)  # checks the values
+    marker = scene.timeline_markers.new(name or _free_name(scene), frame=int(frame))
+    props = impact_data(marker)
+    props.armature = armature.name
+    props.bone = bone
+    props.direction = tuple(float(v) for v in direction)
+    props.strength = float(strength)
+    props.reaction = reaction or AUTO
+    props.uid = uuid.uuid4().hex
+    return marker
+
+
+def _free_name(scene: bpy.types.Scene) -> str:
+    taken = {m.name for m in scene.timeline_markers}
+    return next(f"hit_{k:02d}" for k in range(1, len(taken) + 2) if f"hit_{k:02d}" not in taken)
+
+
+def impact_markers(scene: bpy.types.Scene, armature_name: str) -> list[bpy.types.TimelineMarker]:
+    """The scene's impact markers on one armature, in frame order (then name, then uid)."""
+    found = [m for m in scene.timeline_markers if is_impact_marker(m) and impact_data(m).armature == armature_name]
+    return sorted(found, key=lambda m: (m.frame, m.name, impact_data(m).uid))
+
+
+def find_impact(scene: bpy.types.Scene, uid: str) -> bpy.types.TimelineMarker | None:
+    return next((m for m in scene.timeline_markers if uid and impact_data(m).uid == uid), None)
+
+
+def remove_impact(scene: bpy.types.Scene, marker: bpy.types.TimelineMarker | str) -> None:
+    """Remove an impact marker, given as the marker or its uid."""
+    if isinstance(marker, str):
+        found = find_impact(scene, marker)
+        if found is None:
+            raise ImpactError(f"scene '{scene.name}' has no impact marker with uid '{marker}'")
+        marker = found
+    # TimelineMarkers.remove frees the marker but not its properties (Blender 4.2-5.0): unset ours
+    # first, which leaves only the empty property container (a few hundred bytes) unfreed.
+    marker.property_unset("reactive_anim")
+    scene.timeline_markers.remove(marker)
+
+
+def read_impacts(
+    scene: bpy.types.Scene, armature: bpy.types.Object, frame_range: tuple[int, int] | None = None
+) -> list[Impact]:
+    """The armature's impact markers as core Impacts, in frame order (the order of impact_markers).
+
+    frame_range: inclusive (first, last) timeline frames of the motion the impacts land on; default
+    the frame range of the armature's action. An Impact's frame is `marker.frame - first`. A marker
+    outside the range, on a bone the armature lacks or with a bad value raises ImpactError naming it.
+    """
+    if frame_range is None:
+        action = armature.animation_data.action if armature.animation_data else None
+        if action is None:
+            raise SkeletonError(f"armature '{armature.name}' has no action for its impacts to land on")
+        frame_range = (round(action.frame_range[0]), round(action.frame_range[1]))
+    first, last = frame_range
+    bones = armature.data.bones if isinstance(armature.data, bpy.types.Armature) else ()
+    impacts = []
+    for marker in impact_markers(scene, armature.name):
+        props = impact_data(marker)
+        where = marker_label(marker)
+        if not first <= marker.frame <= last:
+            raise ImpactError(f"{where} is outside the animation's frames {first}-{last}")
+        if props.bone not in bones:
+            raise ImpactError(f"{where} is on bone '{props.bone}', which armature '{armature.name}' does not have")
+        reaction = None if props.reaction == AUTO else props.reaction
+        try:
+            impacts.append(Impact(marker.frame - first, props.bone, tuple(props.direction), props.strength, reaction))
+        except ImpactError as exc:
+            raise ImpactError(f"{where}: {exc}") from None
+    return impacts
+
+
+def marker_label(marker: bpy.types.TimelineMarker) -> str:
+    """How errors and reports name a marker: `impact marker 'hit_02' at frame 130`."""
+    return f"impact marker '{marker.name}' at frame {marker.frame}"
+
+
+# ---------------------------------------------------------------------------------------------
+# Operator
+
+
+class REACTIVE_ANIM_OT_add_impact(bpy.types.Operator):
+    """Add an impact marker on the timeline for an armature"""
+
+    bl_idname = "reactive_anim.add_impact"
+    bl_label = "Add Impact"
+    bl_options = {"REGISTER", "UNDO"}
+
+    armature_name: StringProperty(name="Armature", description="The armature object the impact hits")
+    bone: StringProperty(name="Bone", description="The bone that is hit")
+    frame: IntProperty(name="Frame", description="Timeline frame of the impact (default: the current frame)")
+    direction: FloatVectorProperty(
+        name="Direction", description="World direction of the push", size=3, subtype="XYZ", default=(1.0, 0.0, 0.0)
+    )
+    strength: FloatProperty(
+        name="Strength", description="Impulse in N·s", default=DEFAULT_STRENGTH, min=0.0, soft_min=10.0, soft_max=400.0
+    )
+    reaction: EnumProperty(name="Reaction", items=REACTION_ITEMS)
+    marker_name: StringProperty(name="Marker Name", description="Default: hit_01, hit_02, ...")
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        if context.scene is None:
+            cls.poll_message_set("There is no scene to put the impact marker in")
+            return False
+        return True
+
+    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
+        armature = bpy.data.objects.get(self.armature_name)
+        if armature is None or armature.type != "ARMATURE":
+            self.report({"ERROR"}, f"there is no armature called '{self.armature_name}'")
+            return {"CANCELLED"}
+        frame = self.frame if self.properties.is_property_set("frame") else context.scene.frame_current
+        try:
+            marker = add_impact(
+                context.scene,
+                armature,
+                self.bone,
+                frame,
+                tuple(self.direction),
+                self.strength,
+                self.reaction,
+                self.marker_name,
+            )
+        except ReactiveAnimError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Added {marker_label(marker)} on '{armature.name}' bone '{self.bone}'")
+        return {"FINISHED"}

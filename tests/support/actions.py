@@ -1,0 +1,36 @@
+"""Blender actions in tests: their F-curves whichever action API this Blender has (4.2's
+action.fcurves, 4.4+'s layers, strips and channel bags), and their keys as bytes to compare
+exactly. Imports bpy: only for tests/blender."""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+
+
+def fcurves(action: bpy.types.Action) -> list[bpy.types.FCurve]:
+    """Every F-curve of an action."""
+    if hasattr(action, "layers") and action.layers:
+        return [
+            fc for layer in action.layers for strip in layer.strips for bag in strip.channelbags for fc in bag.fcurves
+        ]
+    return list(action.fcurves)
+
+
+def keyframes(action: bpy.types.Action) -> dict[tuple[str, int], bytes]:
+    """Every key (frame, value, handles, interpolation) of every F-curve, as bytes to compare exactly."""
+    out = {}
+    for fc in fcurves(action):
+        points = fc.keyframe_points
+        data = []
+        for name, width, dtype in (
+            ("co", 2, np.float32),
+            ("handle_left", 2, np.float32),
+            ("handle_right", 2, np.float32),
+            ("interpolation", 1, np.int32),
+        ):
+            values = np.empty(len(points) * width, dtype=dtype)
+            points.foreach_get(name, values)
+            data.append(values.tobytes())
+        out[(fc.data_path, fc.array_index)] = b"".join(data)
+    return out
