@@ -102,8 +102,11 @@ PAPER_LIMITS = {
 # - hip: flexion 120, extension 30, abduction 45, adduction 30, internal and external rotation 45.
 # - knee and elbow: single hinges, flexion 0-150 (AAOS knee 135, elbow 150; 150 for a deep squat),
 #   no hyperextension (the limits are soft: a degree or two past 0 under load).
-# - ankle: plantar flexion 50, dorsiflexion 20 (+10 for running mocap), inversion/eversion 35/15
-#   about the foot's long axis (symmetric here, 35), forefoot abduction/adduction 10 (+10).
+# - ankle: plantar flexion 50, inversion/eversion 35/15 about the foot's long axis (symmetric here,
+#   35). Dorsiflexion (AAOS 20 from the foot square to the shin) and forefoot abduction (10) are
+#   opened to 50 and 35: our zero is the standing foot, a crouch or a lunge in mocap reaches 40-50
+#   there, and a start pose clamped 30 degrees short put a toe 4 cm into the floor and threw the
+#   body up (the demo's push from the front, during a lunge).
 # - shoulder: flexion 180, extension 60, abduction 180, adduction 50 (cross-body), rotation 70/90
 #   (symmetric here, 90: the twist hinge has no side-specific sign).
 # - wrist: flexion 80, extension 70, radial/ulnar deviation 20/30; the forearm's pronation and
@@ -114,7 +117,7 @@ ANATOMICAL_LIMITS = {
     "neck": ((-50, 50), (-70, 70), (-45, 45)),
     "hip": ((-30, 120), (-45, 45), (-30, 45)),
     "knee": ((0, 150), None, None),
-    "ankle": ((-50, 30), (-35, 35), (-20, 20)),
+    "ankle": ((-55, 50), (-35, 35), (-35, 35)),
     "shoulder": ((-60, 180), (-90, 90), (-50, 180)),
     "elbow": ((0, 150), None, None),
     "wrist": ((-70, 80), (-80, 80), (-30, 30)),

@@ -4,7 +4,9 @@ For an impact at B on a playing motion:
   BC  the ragdoll takes the impulse and runs forward dynamics for a reaction time (simulate.py);
   C   the classifier names the likely reaction classes from the state at C (features.py);
       the jump search (search.py) finds, within the most probable class the library has, the clip
-      window closest to the simulated window ending at C; its last frame is the clip's E, matched to C;
+      window closest to the simulated window ending at C; its last frame is the clip's E, matched to
+      C, and the clip is placed so that E's pelvis stands where the simulated pelvis is at C (the
+      search aligns the windows' first frames; by C the push has carried the body further);
   CD  PD servos track theta_blend from C: the motion the character was playing, faded into the clip
       from E (blend.py), so the body moves toward the clip while physics keeps the hit's momentum;
   CF  the simulated CD is faded into the clip's E..F (root lerp, joint slerp); at F the pose is the
@@ -96,7 +98,8 @@ class Reaction:
     probabilities: class slug -> probability (empty without a classifier); predicted: the most
       probable class, or the override. scope: what the search covered ("all", a class, ...).
     reaction_class, clip, jump_frame, cost, accepted: the match (jump_frame: the window's first
-      frame in the clip, library rate); placement: (yaw, (x, y)) that put the clip on the character.
+      frame in the clip, library rate); placement: (yaw, (x, y)) that put the clip on the character:
+      its frame E (the window's last, matched to C) where the simulated body is at C.
     chained: the get-up clip that followed, if any; resumed_at: the original motion's frame at
       which it resumed (None: held the last pose, or resume off).
     timings: seconds per step (bc, classify, search, cd, blend, splice, total).
@@ -180,8 +183,11 @@ def react(
     query = _query_ending_at(before, frame_c, library, impact, ragdoll.roles)
     match = _search(library, query, impact, probabilities, settings)
     clock.lap("search")
-    clip = place(library.clip_motion(match.clip, motion.fps), match.yaw, match.offset)
     frame_e = round((match.jump_frame + library.window - 1) / library.fps * motion.fps)
+    clip_raw = library.clip_motion(match.clip, motion.fps)
+    at_c = before.slice(frame_c, frame_c + 1)
+    placement = _alignment(at_c, clip_raw.slice(frame_e, frame_e + 1), ragdoll.roles)
+    clip = place(clip_raw, *placement)
     steps = max(1, round(settings.transition * motion.fps))
     clip_ef = _frames(clip, frame_e, steps + 1)  # E..F; a clip that ends sooner holds its last pose
     target = blend(_frames(source or motion, frame_c, steps + 1), clip_ef, fade_weights(steps + 1))
@@ -212,7 +218,7 @@ def react(
         jump_frame=match.jump_frame,
         cost=match.cost,
         accepted=match.accepted,
-        placement=(match.yaw, match.offset),
+        placement=placement,
         chained=chained,
         resumed_at=resumed_at,
         timings=clock.total(),

@@ -589,6 +589,19 @@ def test_library_chains_the_getups(library: dict) -> None:
     assert not {f"{n}.bvh" for n in LOCOMOTION} & {c["file"] for c in library["clip"] + library["chain"]}
 
 
+@pytest.mark.parametrize("name", FALLS)
+def test_a_fall_lying_down_chains_the_get_up_for_how_it_lies(clips: dict[str, Motion], library: dict, name: str) -> None:
+    """Measured on the clip's last frame: the chest's front up (lying on the back) chains the
+    face-up get-up, down the face-down one; a fall that ends sitting (head high) the sitting one."""
+    motion = clips[name]
+    chest = motion.global_rotations()[-1, motion.skeleton.index("chest")]
+    front_up = float(quat.rotate(chest, np.array([0.0, -1.0, 0.0]))[2])
+    head = world_points(motion)["head"][-1, 2]
+    fits = "getup_sitting.bvh" if head > 0.5 else "getup_face_up.bvh" if front_up > 0 else "getup_face_down.bvh"
+    entry = next(c for c in library["clip"] if c["file"] == f"{name}.bvh")
+    assert entry["next"] == fits, (name, front_up, head)
+
+
 def test_falls_chain_to_the_getup_that_fits_how_they_end(library: dict) -> None:
     expected = {
         "fall_forward_hands": "getup_face_down.bvh",
