@@ -184,6 +184,16 @@ def _print_table(outcomes: list[_FileOutcome]) -> None:
     print(f"{len(outcomes) - failed} of {len(outcomes)} files baked" + (f", {failed} failed" if failed else ""))
 
 
+def _train_command(args: argparse.Namespace) -> int:
+    """Train the reaction classifier: tools/train_classifier.py with the arguments after `train`
+    (from the repository, which holds tools/; the extension does not ship them)."""
+    try:
+        from tools.train_classifier import main as train
+    except ImportError:
+        raise ReactiveAnimError("`train` runs tools/train_classifier.py: run it from the repository root") from None
+    return train(args.arguments)
+
+
 def _unit(text: str) -> str | float:
     """A unit name, or a number of metres per file unit."""
     try:
@@ -211,6 +221,11 @@ def parser() -> argparse.ArgumentParser:
     where.add_argument("--out-dir", type=Path, help="write <name>.reacted.blend here (default: beside each input)")
     where.add_argument("--overwrite", action="store_true", help="save the baked scene over each input file")
     bake.set_defaults(run=_bake_command)
+    train = commands.add_parser(
+        "train", prefix_chars="+", help="train the reaction classifier (python -m tools.train_classifier --help)"
+    )
+    train.add_argument("arguments", nargs=argparse.REMAINDER, help="passed on, e.g. --quick --clips walk.bvh")
+    train.set_defaults(run=_train_command)
     return p
 
 

@@ -1,0 +1,189 @@
+"""The outcome rule (core/outcome.py) on constructed states, and the support geometry it stands on
+(core/capture.py). No simulation: each state is written down, so each case tests one clause.
+
+The constructed character faces +X (its left is +Y), stands on two feet 20 cm apart whose soles run
+from 5 cm behind to 15 cm ahead of the centre of mass, legs 0.9 m long, centre of mass 1 m up
+(w0 = sqrt(9.81 / 1) = 3.13 /s).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from reactive_anim.core import outcome
+from reactive_anim.core.capture import Support, convex_hull, nearest_in_polygon
+from reactive_anim.core.features import Body, ReactionState
+from reactive_anim.core.outcome import judge
+
+LEG = 0.9
+JOINTS = {"pelvis": 0, "chest": 1, "head": 2, "hip_l": 3, "hip_r": 4, "shoulder_l": 5, "shoulder_r": 6}
+POSE = np.array(
+    [[0, 0, 0.95], [0, 0, 1.3], [0, 0, 1.6], [0, 0.1, 0.9], [0, -0.1, 0.9], [0, 0.2, 1.4], [0, -0.2, 1.4]], dtype=float
+)
+FEET = np.array([[-0.05, 0.1], [0.15, 0.1], [-0.05, -0.1], [0.15, -0.1]])
+SOLE_RADIUS = 0.04
+COM = np.array([0.0, 0.0, 1.0])
+BODY = Body(joints=JOINTS, leg_length=LEG)
+OMEGA = math.sqrt(9.81 / 1.0)
+
+
+def state(
+    velocity=(0.0, 0.0, 0.0), moved=(0.0, 0.0, 0.0), motion_velocity=(0.0, 0.0, 0.0), down=False
+) -> ReactionState:
+    """The character at C with its centre of mass moved and moving; the motion it was playing has
+    its centre of mass at COM moving at `motion_velocity`."""
+    return ReactionState(
+        positions_b=POSE,
+        com_b=COM,
+        positions_c=POSE + np.asarray(moved),
+        com_c=COM + np.asarray(moved),
+        com_velocity=np.asarray(velocity, dtype=float),
+        motion_com=COM,
+        motion_velocity=np.asarray(motion_velocity, dtype=float),
+        support=Support(FEET, SOLE_RADIUS, down),
+        floor=0.0,
+    )
+
+
+def turned(s: ReactionState, yaw: float) -> ReactionState:
+    """Only the push's effect turned: the body keeps facing +X, its centre of mass departs the other way."""
+    c, n = math.cos(yaw), math.sin(yaw)
+    rot = np.array([[c, -n, 0.0], [n, c, 0.0], [0.0, 0.0, 1.0]])
+    return replace(s, com_c=COM + rot @ (s.com_c - COM), com_velocity=rot @ s.com_velocity)
+
+
+def test_at_rest_the_character_sways():
+    assert judge(BODY, state()).reaction == "sway_balance"
+    assert judge(BODY, state()).steps == 0
+
+
+def test_a_fast_forward_centre_of_mass_falls_forward_and_rolls():
+    """5 m/s forward: the XCoM is 1.6 m ahead, 1.41 m past the toes, beyond the 1.26 m that any
+    number of steps can catch, and faster than sqrt(g L) = 2.97 m/s: thrown over its hands, it rolls.
+    (4 m/s, a fast run, is still caught in three long steps.)"""
+    result = judge(BODY, state(velocity=(5.0, 0.0, 0.0)))
+    assert (result.reaction, result.steps, result.direction) == ("fall_forward_roll", None, "forward")
+
+
+@pytest.mark.parametrize(
+    "yaw, expected",
+    [(math.pi / 2, "fall_side_knees"), (-math.pi / 2, "fall_side_knees"), (math.pi, "fall_backward_hands")],
+)
+def test_the_same_state_turned_falls_to_the_side_or_back(yaw, expected):
+    assert judge(BODY, turned(state(velocity=(5.0, 0.0, 0.0)), yaw)).reaction == expected
+
+
+def test_a_slow_fall_sits_down_or_catches_itself_on_the_hands():
+    """Displaced 1.6 m beyond the motion with no speed: not capturable, and slow."""
+    assert judge(BODY, state(moved=(-1.6, 0.0, 0.0))).reaction == "fall_backward_sit"
+    assert judge(BODY, state(moved=(1.6, 0.0, 0.0))).reaction == "fall_forward_hands"
+
+
+@pytest.mark.parametrize(
+    "speed, expected", [(1.0, "step_forward"), (3.3, "steps_forward"), (-1.0, "step_back"), (-3.3, "steps_back")]
+)
+def test_moderate_pushes_are_caught_by_steps(speed, expected):
+    """1 m/s: the XCoM is 0.32 m away, past the toes (0.19 m) by 0.13 m, one step of up to a leg
+    length catches it until about 3 m/s; 3.3 m/s needs two."""
+    assert judge(BODY, state(velocity=(speed, 0.0, 0.0))).reaction == expected
+
+
+def test_a_sideways_push_caught_by_steps_sways_a_standing_character_and_steps_a_walker_on():
+    sideways = judge(BODY, state(velocity=(0.0, 1.0, 0.0)))
+    assert (sideways.direction, sideways.steps, sideways.reaction) == ("side", 1, "sway_balance")
+    walking = state(velocity=(1.3, 1.0, 0.0), motion_velocity=(1.3, 0.0, 0.0))
+    assert judge(BODY, walking).reaction == "step_forward"
+    walking_back = state(velocity=(-1.0, 1.0, 0.0), motion_velocity=(-1.0, 0.0, 0.0))
+    assert judge(BODY, walking_back).reaction == "step_back"
+
+
+def test_a_body_already_on_the_floor_has_fallen():
+    result = judge(BODY, state(velocity=(0.3, 0.0, 0.0), down=True))
+    assert (result.steps, result.reaction) == (None, "fall_forward_hands")
+
+
+def test_a_departure_inside_the_feet_sways_and_the_tolerance_is_the_sway_limit():
+    """Forward, the support reaches 0.19 m ahead of the centre of mass; up to SWAY_TOLERANCE leg
+    lengths beyond that is still a sway."""
+    edge = 0.15 + SOLE_RADIUS + outcome.SWAY_TOLERANCE * LEG
+    assert judge(BODY, state(velocity=((edge - 0.01) * OMEGA, 0.0, 0.0))).reaction == "sway_balance"
+    assert judge(BODY, state(velocity=((edge + 0.01) * OMEGA, 0.0, 0.0))).reaction == "step_forward"
+
+
+def test_steps_grow_with_the_excess_up_to_the_infinite_step_limit():
+    """Koolen's recursion: the number of steps never falls as the excess grows, and the last
+    capturable excess is the infinite-step bound (l_max / (e^(w dt) - 1) + l_max) / e^(w t1)."""
+    window, reach = 0.25, outcome.MAX_STEP_LENGTH * LEG
+    growth = math.exp(OMEGA * outcome.STEP_TIME)
+    bound = (reach / (growth - 1.0) + reach) / math.exp(OMEGA * (outcome.FIRST_STEP_DELAY - window))
+    excesses = np.linspace(0.0, bound * 0.999, 400)
+    steps = [outcome._steps_to_capture(e, OMEGA, LEG, window) for e in excesses]
+    assert all(s is not None for s in steps)
+    assert steps == sorted(steps) and steps[-1] > 2
+    assert outcome._steps_to_capture(bound * 1.01, OMEGA, LEG, window) is None
+
+
+def _sector(degrees: float) -> str:
+    return outcome._direction(np.array([math.cos(math.radians(degrees)), math.sin(math.radians(degrees))]))
+
+
+def test_the_direction_sectors_are_45_degrees_either_side_of_the_facing_axis():
+    angles = (0, 44, 46, 90, 134, 136, 180, -60)
+    expected = ["forward", "forward", "side", "side", "side", "backward", "backward", "side"]
+    assert [_sector(a) for a in angles] == expected
+
+
+# ---------------------------------------------------------------------------------------------
+# The support geometry
+
+
+SQUARE = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+
+
+def test_the_hull_drops_inner_points_and_runs_counter_clockwise():
+    hull = convex_hull(np.vstack([SQUARE, [[0.5, 0.5], [0.2, 0.7]]]))
+    assert len(hull) == 4 and {tuple(p) for p in hull} == {tuple(p) for p in SQUARE}
+    area = 0.5 * np.sum(hull[:, 0] * np.roll(hull[:, 1], -1) - np.roll(hull[:, 0], -1) * hull[:, 1])
+    assert area == pytest.approx(1.0)  # positive: counter-clockwise
+
+
+def test_the_nearest_point_is_the_point_itself_inside_and_on_the_edge_outside():
+    np.testing.assert_allclose(nearest_in_polygon(SQUARE, np.array([0.3, 0.4])), [0.3, 0.4])
+    np.testing.assert_allclose(nearest_in_polygon(SQUARE, np.array([2.0, 0.5])), [1.0, 0.5])
+    np.testing.assert_allclose(nearest_in_polygon(SQUARE, np.array([-1.0, -1.0])), [0.0, 0.0])
+
+
+def test_the_reach_runs_to_the_edge_of_the_grown_hull():
+    """Two sole points 2 m apart grown by 1 m: a capsule. Along it the reach ends on the end disc,
+    across it on the straight side, diagonally on the arc."""
+    support = Support(np.array([[0.0, 0.0], [2.0, 0.0]]), 1.0)
+    assert support.reach(np.array([1.0, 0.0]), np.array([1.0, 0.0])) == pytest.approx(2.0)
+    assert support.reach(np.array([1.0, 0.0]), np.array([0.0, -1.0])) == pytest.approx(1.0)
+    assert support.reach(np.array([1.0, 0.5]), np.array([0.0, 1.0])) == pytest.approx(0.5)
+    assert support.reach(np.array([2.0, 0.0]), np.array([1.0, 1.0])) == pytest.approx(1.0)
+    assert Support(np.zeros((1, 2)), 0.5).reach(np.zeros(2), np.array([0.0, 3.0])) == pytest.approx(0.5)
+
+
+def test_the_reach_does_not_depend_on_the_heading():
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        c, n = np.cos(yaw := rng.uniform(-np.pi, np.pi)), np.sin(yaw)
+        rot = np.array([[c, -n], [n, c]])
+        target, direction = rng.normal(size=2) * 0.2, rng.normal(size=2)
+        plain = Support(FEET, SOLE_RADIUS).reach(target, direction)
+        turned_support = Support(FEET @ rot.T, SOLE_RADIUS)
+        assert turned_support.reach(rot @ target, rot @ direction) == pytest.approx(plain, abs=1e-9)
+
+
+def test_the_reach_starts_from_the_support_point_nearest_the_target():
+    support = Support(FEET, SOLE_RADIUS)
+    assert support.reach(np.zeros(2), np.array([1.0, 0.0])) == pytest.approx(0.15 + SOLE_RADIUS, abs=2e-3)
+    assert support.reach(np.array([1.0, 0.0]), np.array([1.0, 0.0])) == pytest.approx(
+        0.0, abs=1e-9
+    )  # a walker's XCoM ahead
+    assert support.reach(np.array([1.0, 0.0]), np.array([-1.0, 0.0])) == pytest.approx(0.2 + 2 * SOLE_RADIUS, abs=2e-3)
+    assert Support(np.zeros((0, 2)), SOLE_RADIUS).reach(np.zeros(2), np.array([1.0, 0.0])) == 0.0
