@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any, cast
 import bpy
 from bpy.props import PointerProperty, StringProperty
 
+from ..core.classifier import load_classifier
 from ..core.errors import BVHError, ClassifierError, ImpactError, LibraryError, ReactiveAnimError, SkeletonError
 from ..core.impact import Impact
 from ..core.library import Library, load_library
@@ -114,16 +115,7 @@ def open_classifier(model_path: str | Path | None = None) -> tuple[ReactionClass
         path = default_model_path()
         if not path.is_file():
             return None, f"no classifier model ({path} is missing): {WHOLE_LIBRARY}"
-    classifier = _load_classifier(path)
-    if classifier is None:
-        return None, f"no classifier loader in the core yet ({path.name} unused): {WHOLE_LIBRARY}"
-    return classifier, f"classifier {path.name}"
-
-
-def _load_classifier(model_path: Path) -> ReactionClassifier | None:
-    """The classifier in `model_path`; None while the core has no classifier loader."""
-    del model_path  # core/classifier.py does not exist yet; the pipeline then searches the whole library
-    return None
+    return load_classifier(path), f"classifier {path.name}"
 
 
 # ---------------------------------------------------------------------------------------------

@@ -62,8 +62,9 @@ class ReactionSettings:
     transition: C to F, seconds of PD tracking faded into the clip [0.33].
     profile: the ragdoll's joint profile, "anatomical" or "paper" (ragdoll.py) ["anatomical"].
     search_threshold: Eq. 1 cost above which a class's best window is refused and the next
-      probable class is searched, then the whole library [25.0; sample-library matches of pushed
-      walks cost about 5-30].
+      probable class is searched, then the whole library [40.0: the sample library's matches of
+      pushed walks cost 10-40, and a whole-library search picks by the pre-impact pose, not by
+      what the push does, so a predicted class is kept unless its best window is clearly poor].
     min_probability: classes less probable than this are not searched by name (the whole-library
       fallback still covers them) [0.1].
     resume: after a reaction that ends standing, resume the original motion [True].
@@ -75,7 +76,7 @@ class ReactionSettings:
     reaction_window: float = 0.25
     transition: float = 0.33
     profile: str = "anatomical"
-    search_threshold: float = 25.0
+    search_threshold: float = 40.0
     min_probability: float = 0.1
     resume: bool = True
     chain_blend: float = 0.2
@@ -178,7 +179,7 @@ def react(
     frame_c = int(bc.frames[-1])
     before = _join(motion.slice(0, int(bc.frames[0])), bc.motion)
     clock.lap("bc")
-    probabilities = _probabilities(classifier, before, bc, ragdoll)
+    probabilities = _probabilities(classifier, motion, bc, ragdoll)
     clock.lap("classify")
     query = _query_ending_at(before, frame_c, library, impact, ragdoll.roles)
     match = _search(library, query, impact, probabilities, settings)

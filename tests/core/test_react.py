@@ -8,6 +8,7 @@ import pytest
 
 from reactive_anim.core import bvh, quat
 from reactive_anim.core.blend import place
+from reactive_anim.core.classifier import load_classifier
 from reactive_anim.core.errors import Cancelled, ImpactError, LibraryError
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.library import load_library
@@ -160,3 +161,29 @@ def test_settings_change_the_transition(walk, library, ragdoll) -> None:
     long = react(walk, impact, library, settings=ReactionSettings(transition=0.5), ragdoll=ragdoll)
     assert short.frame_f - short.frame_c == round(0.1 * walk.fps)
     assert long.frame_f - long.frame_c == round(0.5 * walk.fps)
+
+
+FORWARD_CLASSES = {"step_forward", "steps_forward", "fall_forward_roll", "fall_forward_hands"}
+BACKWARD_CLASSES = {"step_back", "steps_back", "fall_backward_sit", "fall_backward_hands"}
+
+
+@pytest.mark.parametrize(
+    ("push", "strength", "expected"),
+    [
+        ("behind", 250.0, FORWARD_CLASSES),
+        ("front", 250.0, BACKWARD_CLASSES),
+        ("side", 300.0, {"fall_side_knees"}),
+        ("behind", 20.0, {"sway_balance", "step_forward", "step_back"}),
+        ("front", 20.0, {"sway_balance", "step_forward", "step_back"}),
+    ],
+)
+def test_the_shipped_classifier_picks_the_reaction_the_push_calls_for(walk, library, ragdoll, push, strength, expected):
+    """With the shipped model on the sample walk (chest pushes): a hard push from behind gives a
+    forward class, from the front a backward one, a hard side hit a side fall, a light touch a sway
+    or a single step; the chosen clip is of the predicted class (the search kept to it)."""
+    ahead = forward(walk, B)
+    left = np.cross([0.0, 0.0, 1.0], ahead)
+    direction = {"behind": ahead, "front": -ahead, "side": left}[push]
+    r = react(walk, Impact(B, "chest", tuple(direction), strength), library, load_classifier(), ragdoll=ragdoll)
+    assert r.predicted in expected, (r.predicted, sorted(r.probabilities.items(), key=lambda kv: -kv[1])[:3])
+    assert r.reaction_class == r.predicted and r.scope == r.predicted
