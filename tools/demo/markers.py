@@ -66,7 +66,7 @@ DEMO_IMPACTS = (
     DemoImpact("push_from_behind", 40 / 60, "chest", "from_behind", 150.0, "steps_forward"),
     DemoImpact("push_from_front", 100 / 60, "chest", "from_front", 150.0, "step_back"),
     DemoImpact("push_during_step", 145 / 60, "chest", "from_behind", 100.0, "step_forward"),
-    DemoImpact("side_hit", 205 / 60, "pelvis", "from_right", 250.0, "fall_side_knees"),
+    DemoImpact("side_hit", 205 / 60, "pelvis", "from_right", 350.0, "fall_side_knees"),
 )
 
 
