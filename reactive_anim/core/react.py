@@ -345,23 +345,29 @@ def _chain(
 def _resume_or_hold(
     out: Motion, source: Motion, first: int, window: int, roles: dict[str, str]
 ) -> tuple[Motion, int | None]:
-    """Resume the source from frame `first` on over a `window`-frame fade (0: do not resume, as
-    after a fall with nothing chained); else hold the last pose up to the source's end."""
-    if window and source.num_frames - first > window:
-        return _resume(out, source, first, window, roles)
+    """Resume the source over a `window`-frame fade (0: do not resume, as after a fall with nothing
+    chained), re-entering at a frame from `first` to a second past where the fade starts (the
+    resumed motion stays near the timeline's own time: a walk repeats within a second, and later
+    markers still land where the animator put them); else hold the last pose to the source's end."""
+    stop = min(source.num_frames, out.num_frames + round(source.fps))
+    if window and stop - first > window:
+        return _resume(out, source, (first, stop), window, roles)
     missing = source.num_frames - out.num_frames
     if missing > 0:
-        last = out.slice(out.num_frames - 1, out.num_frames)
-        out = _join(out, *([last] * missing))
+        hold = out.slice(out.num_frames - 1, out.num_frames)
+        out = _join(out, *([hold] * missing))
     return out, None
 
 
-def _resume(out: Motion, source: Motion, first: int, window: int, roles: dict[str, str]) -> tuple[Motion, int]:
-    """Align the source's best re-entry window (Eq. 1, starting at or after `first`) with the last
+def _resume(
+    out: Motion, source: Motion, entries: tuple[int, int], window: int, roles: dict[str, str]
+) -> tuple[Motion, int]:
+    """Align the source's best re-entry window (Eq. 1, within its frames `entries`) with the last
     `window` frames of `out`, fade over that window, and play the source on from there."""
+    first, stop = entries
     tail = out.slice(out.num_frames - window, out.num_frames)
     query = Query(frame_features(tail, roles))
-    candidates = frame_features(source.slice(first, source.num_frames), roles)
+    candidates = frame_features(source.slice(first, stop), roles)
     starts = np.arange(candidates.num_frames - window + 1)
     costs = window_costs(candidates, starts, query,
                          joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS))  # fmt: skip

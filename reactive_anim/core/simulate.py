@@ -416,9 +416,21 @@ def _ground_level(ws: Workspace, table: _MocapTable, frame: float, held: HeldPos
     heights = sole_z - np.abs(sole_axis_z * size[:, 1]) - size[:, 0]
     lowest = heights.min(axis=1)
     # The median frame's lowest sole: the standing foot, robust to heel-strike dips and flight
-    # phases; but never above the start frame's lowest sole, so the start does not pop out of the floor.
-    at_start = lowest[int(np.argmin(np.abs(numbers[rows] - round(frame))))]
-    return float(min(np.median(lowest), at_start))
+    # phases; but never above the start frame's lowest sole, so the start does not pop out of the
+    # floor, nor above any body at the start (a character lying or kneeling with its feet up).
+    start = int(np.argmin(np.abs(numbers[rows] - round(frame))))
+    return float(min(np.median(lowest), lowest[start], _lowest_body_point(ws, data, table.qpos[rows[start]])))
+
+
+def _lowest_body_point(ws: Workspace, data: mujoco.MjData, qpos: np.ndarray) -> float:
+    """The lowest point of any ragdoll geom (capsules and spheres) in the pose `qpos`."""
+    model = ws.model
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    geoms = np.flatnonzero(ws.ragdoll.body_of_geom >= 0)
+    size = model.geom_size[geoms]
+    half = np.where(model.geom_type[geoms] == mujoco.mjtGeom.mjGEOM_CAPSULE, size[:, 1], 0.0)
+    return float(np.min(data.geom_xpos[geoms, 2] - np.abs(data.geom_xmat[geoms, 8] * half) - size[:, 0]))
 
 
 # ---------------------------------------------------------------------------------------------

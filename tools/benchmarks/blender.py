@@ -1,5 +1,7 @@
-"""Blender: import + read_motion of the largest shared file, and write_motion of 3,000 frames x 22
-bones (the sample walk repeated), in the bpy module of the running Python."""
+"""Blender: import + read_motion of the largest shared file, write_motion of 3,000 frames x 22
+bones (the sample walk repeated), and the bake operator's work on that 3,000-frame action with 20
+impact markers (read, pipeline with the shipped classifier, keyframe write), in the bpy module of
+the running Python."""
 
 from __future__ import annotations
 
@@ -32,6 +34,7 @@ def bench_blender() -> None:
         else:
             _bench_import_read(bpy, bvh_import, action_io, path)
         _bench_write(bpy, bvh_import, action_io)
+        _bench_bake(bpy, bvh_import, action_io)
     finally:
         reactive_anim.unregister()  # the bpy module misbehaves at exit with classes still registered
 
@@ -81,3 +84,26 @@ def _bench_write(bpy, bvh_import, action_io) -> None:
         runs=runs,
         blender=bpy.app.version_string,
     )
+
+
+def _bench_bake(bpy, bvh_import, action_io) -> None:
+    """A bake of 20 impacts (chest and pelvis, from around the character, 40-250 N·s) on the sample
+    walk repeated to 3,000 frames, as the bake operator does it (bake.bake_armature)."""
+    from reactive_anim.blender import bake, impacts
+
+    from .react import push_impacts, repeated_walk
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    rig = bvh_import.import_bvh(bpy.context, REPO / "sample_clips" / "walk.bvh")
+    long = repeated_walk(action_io.read_motion(rig), WRITE_FRAMES)
+    rig.animation_data.action = action_io.write_motion(rig, long, "long walk")
+    scene = bpy.context.scene
+    first = int(rig.animation_data.action.frame_range[0])
+    for impact in push_impacts(long, [int(f) for f in range(60, 2900, 142)][:20]):
+        impacts.add_impact(scene, rig, impact.bone, first + int(impact.frame), impact.direction, impact.strength)
+    library = bake.open_library()
+    library.search_index()  # built once per library; a bake after the first reuses it
+    start = time.perf_counter()
+    result = bake.bake_armature(scene, rig, library=library)
+    report("blender", "bake of 20 impacts on 3,000 frames (read, react, write)", time.perf_counter() - start, "s",
+           frames=WRITE_FRAMES, impacts=len(result.reactions), blender=bpy.app.version_string)  # fmt: skip

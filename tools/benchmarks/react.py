@@ -1,5 +1,6 @@
 """Reaction pipeline figures (core/react.py): the time of each step of one impact (BC, classify,
-search, CD, blend, splice) on the sample walk with the sample library, and a bake of 20 impacts
+search, CD, blend, splice) on the sample walk with the sample library and the shipped classifier,
+and a bake of 20 impacts
 on a 3,000-frame motion (the sample walk repeated), all in the core (the Blender bake, with its
 keyframe writes, is in the `blender` group). Warm: the library index, the ragdoll and the
 simulation workspace are built once, as a bake reuses them.
@@ -14,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from reactive_anim.core import bvh
+from reactive_anim.core.classifier import load_classifier
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.library import load_library
 from reactive_anim.core.react import bake_reactions, character_ragdoll, react
@@ -34,7 +36,7 @@ def _facing(motion: Motion, frame: int) -> np.ndarray:
     return forward / np.linalg.norm(forward)
 
 
-def _impacts(motion: Motion, frames: list[int]) -> list[Impact]:
+def push_impacts(motion: Motion, frames: list[int]) -> list[Impact]:
     """Chest and pelvis pushes from around the character, 40-250 N·s, at the given frames."""
     out = []
     for k, frame in enumerate(frames):
@@ -47,7 +49,7 @@ def _impacts(motion: Motion, frames: list[int]) -> list[Impact]:
     return out
 
 
-def _repeated(motion: Motion, frames: int) -> Motion:
+def repeated_walk(motion: Motion, frames: int) -> Motion:
     """The motion played again and again, each copy starting where the last one ended."""
     out = motion
     while out.num_frames < frames:
@@ -65,17 +67,18 @@ def bench_react() -> None:
         library.search_index()
         ragdoll = character_ragdoll(walk)
         workspace = Workspace(ragdoll)
+        classifier = load_classifier()
         times: dict[str, list[float]] = {step: [] for step in STEPS}
-        for impact in _impacts(walk, [40, 60, 80, 100, 120, 140, 160]):
-            reaction = react(walk, impact, library, ragdoll=ragdoll, workspace=workspace)
+        for impact in push_impacts(walk, [40, 60, 80, 100, 120, 140, 160]):
+            reaction = react(walk, impact, library, classifier, ragdoll=ragdoll, workspace=workspace)
             for step in STEPS:
                 times[step].append(reaction.timings.get(step, 0.0))
-        context = {"clip": "sample walk", "impacts": len(times["total"]), "classifier": "none (whole library)"}
+        context = {"clip": "sample walk", "impacts": len(times["total"]), "classifier": "shipped"}
         for step in STEPS:
             report("react", f"one impact: {step}, median", float(np.median(times[step])) * 1e3, "ms", **context)
-        long = _repeated(walk, 3000)
-        impacts = _impacts(long, list(np.linspace(60, 2900, 20).astype(int)))
+        long = repeated_walk(walk, 3000)
+        impacts = push_impacts(long, list(np.linspace(60, 2900, 20).astype(int)))
         start = time.perf_counter()
-        baked = bake_reactions(long, impacts, library)
+        baked = bake_reactions(long, impacts, library, classifier)
         report("react", "bake of 20 impacts, core only", time.perf_counter() - start, "s",
                clip="sample walk x 11", frames=long.num_frames, output_frames=baked.motion.num_frames)  # fmt: skip
