@@ -590,7 +590,9 @@ def test_library_chains_the_getups(library: dict) -> None:
 
 
 @pytest.mark.parametrize("name", FALLS)
-def test_a_fall_lying_down_chains_the_get_up_for_how_it_lies(clips: dict[str, Motion], library: dict, name: str) -> None:
+def test_a_fall_lying_down_chains_the_get_up_for_how_it_lies(
+    clips: dict[str, Motion], library: dict, name: str
+) -> None:
     """Measured on the clip's last frame: the chest's front up (lying on the back) chains the
     face-up get-up, down the face-down one; a fall that ends sitting (head high) the sitting one."""
     motion = clips[name]
