@@ -78,7 +78,7 @@ class AssistController:
         fade = min(1.0, max(0.0, (self.assist.fade_end - tilt) / (self.assist.fade_end - self.assist.fade_start)))
         # World angular velocity: the free joint's is in the body frame, rotate it by q.
         wx, wy, wz = (float(v) for v in data.qvel[3:6])
-        spin_x, spin_y = _rotate_xy(qw, qx, qy, qz, wx, wy, wz)
+        spin_x, spin_y = _rotate_xy((qw, qx, qy, qz), (wx, wy, wz))
         height = max(target[2] - floor, 0.1)
         lever = self.weight * height  # toppling stiffness m g h, N·m/rad
         kr = 2.0 * lever
@@ -106,8 +106,10 @@ class AssistController:
         return [float(a[0]), float(a[1]), z, *(float(v) for v in q[3:7])], float(b[2] - a[2]) * fps
 
 
-def _rotate_xy(qw: float, qx: float, qy: float, qz: float, vx: float, vy: float, vz: float) -> tuple[float, float]:
-    """x and y of the vector (vx, vy, vz) rotated by the unit quaternion q."""
+def _rotate_xy(q: tuple[float, float, float, float], v: tuple[float, float, float]) -> tuple[float, float]:
+    """x and y of the vector v rotated by the unit quaternion q (w, x, y, z)."""
+    qw, qx, qy, qz = q
+    vx, vy, vz = v
     # v' = v + 2 w (u x v) + 2 u x (u x v), u = (qx, qy, qz)
     cx, cy, cz = qy * vz - qz * vy, qz * vx - qx * vz, qx * vy - qy * vx
     return (

@@ -295,7 +295,9 @@ def _motion_header(lines: list[str], start: int, label: str) -> tuple[int, float
     return frames, frame_time, i
 
 
-def _motion_values(lines: list[str], first: int, frames: int, columns: int, frames_line: int, label: str) -> np.ndarray:
+def _motion_values(
+    lines: list[str], first: int, frames: int, columns: int, *, frames_line: int, label: str
+) -> np.ndarray:
     """The (frames, columns) block, vectorised; on any mismatch a per-line pass names the line."""
     numbered = [(n, text) for n, text in enumerate(lines[first:], first + 1) if text.strip()]
     if len(numbered) > frames:
@@ -376,7 +378,7 @@ def parse_bvh(source: str | Path | bytes, name: str | None = None) -> BVHData:
         raise BVHError("the MOTION section is missing", label, last_line)
     frames, frame_time, first = _motion_header(lines, motion_at, label)
     frames_line = next(n for n in range(motion_at + 2, len(lines) + 1) if lines[n - 1].strip())
-    values = _motion_values(lines, first, frames, parser.columns, frames_line, label)
+    values = _motion_values(lines, first, frames, parser.columns, frames_line=frames_line, label=label)
     return BVHData(
         path=label,
         names=parser.names,
@@ -476,7 +478,7 @@ def format_bvh(
         return out
 
     lines = ["HIERARCHY"]
-    _hierarchy_lines(motion, 0, order, file_vectors, f"%.{decimals}f", lines)
+    _hierarchy_lines(motion, 0, order, file_vectors=file_vectors, number=f"%.{decimals}f", lines=lines)
     local_rot = quat.mul(quat.mul(to_file, motion.local_rot), quat.conj(to_file))
     block = _motion_block(motion, np.degrees(quat.to_euler(local_rot, order)), file_vectors)
     block[np.abs(block) < tiny] = 0.0
@@ -490,6 +492,7 @@ def _hierarchy_lines(
     motion: Motion,
     joint: int,
     order: str,
+    *,
     file_vectors: Callable[[np.ndarray], np.ndarray],
     number: str,
     lines: list[str],
@@ -508,7 +511,7 @@ def _hierarchy_lines(
         f"{pad}\tCHANNELS {channels}",
     ]
     for child in sk.children(joint):
-        _hierarchy_lines(motion, child, order, file_vectors, number, lines, depth + 1)
+        _hierarchy_lines(motion, child, order, file_vectors=file_vectors, number=number, lines=lines, depth=depth + 1)
     if joint in sk.end_sites:
         tip = " ".join(number % v for v in file_vectors(sk.end_sites[joint]))
         lines += [f"{pad}\tEnd Site", f"{pad}\t{{", f"{pad}\t\tOFFSET {tip}", f"{pad}\t}}"]

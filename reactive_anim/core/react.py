@@ -233,6 +233,7 @@ def bake_reactions(
     library: Library,
     classifier: ReactionClassifier | None = None,
     settings: ReactionSettings | None = None,
+    *,
     progress: Callable[[int, int, str], None] | None = None,
     cancel: Callable[[], bool] | None = None,
 ) -> Baked:

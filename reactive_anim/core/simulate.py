@@ -619,7 +619,7 @@ def _samples(
 
 
 def _to_motion(
-    ragdoll: Ragdoll, held: HeldPose, follow: np.ndarray, body_rot: np.ndarray, pelvis_pos: np.ndarray, fps: float
+    ragdoll: Ragdoll, held: HeldPose, follow: np.ndarray, body_rot: np.ndarray, pelvis_pos: np.ndarray, *, fps: float
 ) -> Motion:
     """Full-skeleton Motion from simulated body rotations (N, B, 4) and pelvis positions (N, 3).
 
@@ -779,7 +779,7 @@ def _step_and_sample(ws: Workspace, start: SimState, plan: _Plan, watch: _Watch)
         qvel_arr[n] = data.qvel
         contacts[n] = _floor_contacts(ws, data)
     rots, pelvis, com, com_vel = _samples(ws, qpos_arr, qvel_arr)
-    motion = _to_motion(ws.ragdoll, start.held, plan.follow, rots, pelvis, plan.fps)
+    motion = _to_motion(ws.ragdoll, start.held, plan.follow, rots, pelvis, fps=plan.fps)
     end = SimState(qpos=qpos_arr[-1].copy(), qvel=qvel_arr[-1].copy(), held=start.held, floor=start.floor)
     times = (np.asarray(plan.sample_offsets, dtype=float) - plan.start_offset) / plan.fps
     first = {body.name: float(times[np.argmax(contacts[:, k])])

@@ -139,7 +139,7 @@ def test_mocap_to_joint_angles_and_back_reproduces_the_pose(sample_walk, dataset
     workspace = Workspace(ragdoll)
     _place_bodies(workspace, held)
     rots, pelvis, _, _ = _samples(workspace, table.qpos, np.zeros((1, ragdoll.model.nv)))
-    out = _to_motion(ragdoll, held, held.local_rot[None], rots, pelvis, motion.fps)
+    out = _to_motion(ragdoll, held, held.local_rot[None], rots, pelvis, fps=motion.fps)
     expected = motion.global_positions()[frame]
     got = out.global_positions()[0]
     hinged = [b.joint for b in ragdoll.bodies if b.name[:-2] in ("knee", "elbow")]
