@@ -47,6 +47,10 @@ except ImportError:  # pip always vendors packaging, so the tool needs nothing p
 REPO = Path(__file__).resolve().parents[1]
 PACKAGE_DIR = REPO / "reactive_anim"
 MANIFEST = REPO / "blender_manifest.toml"
+# The sample reaction library ships inside the zip as `sample_library/` (the bake's default library;
+# blender/bake.py looks for it there), so an installed extension bakes without a checkout.
+SAMPLE_LIBRARY = REPO / "sample_clips"
+SAMPLE_FILES = ("*.bvh", "library.toml", "README.md")
 PYPROJECT = REPO / "pyproject.toml"
 # The one place the bundled versions are pinned (the newest Blender line's environment).
 PINS_FILE = REPO / "tools" / "requirements" / "bpy-5.0.txt"
@@ -61,7 +65,7 @@ PYTHON_VERSION = "3.11"  # Blender 4.2 to 5.0 all embed Python 3.11
 # Development-only files that must never reach a user's Blender.
 PACKAGE_IGNORE = ("__pycache__", "*.pyc", "tests", ".*", "*.blend[1-9]")
 # Sources whose change makes a built zip stale.
-BUILD_INPUTS = (PACKAGE_DIR, MANIFEST, PINS_FILE, Path(__file__).resolve())
+BUILD_INPUTS = (PACKAGE_DIR, MANIFEST, PINS_FILE, SAMPLE_LIBRARY, Path(__file__).resolve())
 
 # onnxruntime 1.32.0 publishes macOS arm64 wheels for macosx_14_0 only, so the macOS zip needs
 # macOS 14 or newer (Blender itself runs on 11.2+). Raising this lets pip pick wheels that need
@@ -334,8 +338,14 @@ def run_blender_ext(blender_ext: Path, *args: str) -> str:
 
 
 def stage(stage_dir: Path, platform: str, wheels: list[Path]) -> list[str]:
-    """Lay out the zip's contents: the package at the root, the filled-in manifest, the wheels."""
+    """Lay out the zip's contents: the package at the root, the sample library, the filled-in
+    manifest, the wheels."""
     shutil.copytree(PACKAGE_DIR, stage_dir, ignore=shutil.ignore_patterns(*PACKAGE_IGNORE))
+    library = stage_dir / "sample_library"
+    library.mkdir()
+    for pattern in SAMPLE_FILES:
+        for path in sorted(SAMPLE_LIBRARY.glob(pattern)):
+            shutil.copy2(path, library / path.name)
     (stage_dir / "wheels").mkdir()
     for wheel in wheels:
         shutil.copy2(wheel, stage_dir / "wheels" / wheel.name)

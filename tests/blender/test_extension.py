@@ -262,7 +262,12 @@ def test_zip_validates_and_holds_only_the_addon(extension_zip: Path, build_tool:
     with zipfile.ZipFile(extension_zip) as archive:
         names = archive.namelist()
         manifest = archive.read("blender_manifest.toml").decode()
+        library_toml = archive.read("sample_library/library.toml").decode()
     assert "__init__.py" in names and "blender_manifest.toml" in names
+    # What the bake needs by default: the sample library (every clip its manifest names) and the model.
+    assert "models/reaction_classifier.onnx" in names
+    clips = {line.split('"')[1] for line in library_toml.splitlines() if line.startswith("file = ")}
+    assert clips and all(f"sample_library/{name}" in names for name in clips), clips
     for name in names:
         parts = name.split("/")
         assert not {"tests", "tools", "__pycache__"} & set(parts), name
