@@ -30,7 +30,7 @@ check() {  # check LABEL COMMAND...
   echo "=== $label"
   if "$@"; then echo "$label: ok"; else echo "$label: FAILED"; status=1; fi
 }
-check "ruff check" "$bin/ruff" check reactive_anim tools tests
-check "ruff format" "$bin/ruff" format --check reactive_anim tools tests
+check "ruff check" "$bin/ruff" check .
+check "ruff format" "$bin/ruff" format --check .
 check "pyright" "$bin/pyright"
 exit $status
