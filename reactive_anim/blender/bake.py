@@ -98,7 +98,13 @@ def open_library(path: str | Path | None = None) -> Library:
     path = Path(bpy.path.abspath(str(path)))
     if not path.exists():
         raise LibraryError(f"reaction library not found: {path}")
-    return load_library(path, cache_dir=library_cache_dir())
+    library = load_library(path, cache_dir=library_cache_dir())
+    # The same compiled library (its cache file is named by the content key) keeps its search index
+    # and clip motions from one bake to the next, instead of building them again.
+    return _OPEN_LIBRARIES.setdefault(library.cache_path or path, library)
+
+
+_OPEN_LIBRARIES: dict[Path, Library] = {}
 
 
 def open_classifier(model_path: str | Path | None = None) -> tuple[ReactionClassifier | None, str]:

@@ -50,7 +50,7 @@ from .classes import CLASS_SLUGS
 from .errors import BVHError, LibraryError, SkeletonError
 from .roles import assign_roles
 from .search_index import SearchIndex, build_index
-from .skeleton import Motion, resample
+from .skeleton import Motion, frame_times, resample
 from .window import FrameFeatures, frame_features
 
 MANIFEST_NAME = "library.toml"
@@ -230,10 +230,7 @@ class Library:
             duration = (info.num_frames - 1) / info.library_fps
             stop = min(motion.num_frames, info.source_start + int(np.floor(duration * motion.fps + 1e-6)) + 1)
             motion = motion.slice(info.source_start, stop)
-        if np.isclose(motion.fps, fps):
-            return motion
-        duration = (motion.num_frames - 1) / motion.fps
-        return resample(motion, np.arange(int(np.floor(duration * fps + 1e-9)) + 1) / fps)
+        return motion if np.isclose(motion.fps, fps) else resample(motion, frame_times(motion, fps))
 
     def clip_start(self, clip_index: int) -> int:
         """Flat index of the clip's first frame."""
@@ -366,43 +363,52 @@ def read_chains(source: str | Path) -> dict[str, Path]:
 # Compile and cache
 
 
-def _read_bytes(entry: ClipEntry) -> bytes:
+def _read_bytes(name: str, path: Path) -> bytes:
     try:
-        return entry.path.read_bytes()
+        return path.read_bytes()
     except FileNotFoundError:
-        raise _entry_error(entry.name, f"file not found: {entry.path}") from None
+        raise _entry_error(name, f"file not found: {path}") from None
     except OSError as exc:
-        raise _entry_error(entry.name, f"cannot read {entry.path}: {exc}") from None
+        raise _entry_error(name, f"cannot read {path}: {exc}") from None
 
 
-def _file_digest(entry: ClipEntry, memo: dict[str, list]) -> str:
+def _file_digest(name: str, path: Path, memo: dict[str, list]) -> str:
     """SHA-256 of a clip file's bytes; reused from `memo` while its size and mtime are unchanged,
     so checking an unchanged library touches no clip's bytes (only its file status)."""
     try:
-        st = entry.path.stat()
+        st = path.stat()
     except FileNotFoundError:
-        raise _entry_error(entry.name, f"file not found: {entry.path}") from None
+        raise _entry_error(name, f"file not found: {path}") from None
     except OSError as exc:
-        raise _entry_error(entry.name, f"cannot read {entry.path}: {exc}") from None
-    key = str(entry.path.resolve())
+        raise _entry_error(name, f"cannot read {path}: {exc}") from None
+    key = str(path.resolve())
     known = memo.get(key)
     if known is not None and known[0] == st.st_size and known[1] == st.st_mtime_ns:
         return known[2]
-    digest = hashlib.sha256(_read_bytes(entry)).hexdigest()
+    digest = hashlib.sha256(_read_bytes(name, path)).hexdigest()
     memo[key] = [st.st_size, st.st_mtime_ns, digest]
     return digest
 
 
-def cache_key(entries: list[ClipEntry], settings: LibrarySettings, memo: dict[str, list] | None = None) -> str:
-    """SHA-256 of the feature version, settings, manifest and every clip file's bytes (their hashes
-    memoised by size and mtime in `memo`, which this updates)."""
+def cache_key(
+    entries: list[ClipEntry],
+    settings: LibrarySettings,
+    memo: dict[str, list] | None = None,
+    chains: dict[str, Path] | None = None,
+) -> str:
+    """SHA-256 of the feature version, settings, manifest and every clip file's bytes, the chained
+    clips' (get-ups) included: a bake reads them too (their hashes memoised by size and mtime in
+    `memo`, which this updates)."""
     memo = {} if memo is None else memo
     h = hashlib.sha256()
     h.update(json.dumps({"version": FEATURE_VERSION, "settings": asdict(settings)}, sort_keys=True).encode())
     for e in entries:
         meta = {"name": e.name, "class": e.reaction_class, "frames": e.frames, "next": e.next, "roles": e.roles}
         h.update(json.dumps(meta, sort_keys=True).encode())
-        h.update(_file_digest(e, memo).encode())
+        h.update(_file_digest(e.name, e.path, memo).encode())
+    for name, path in sorted((chains or {}).items()):
+        h.update(json.dumps({"chain": name}).encode())
+        h.update(_file_digest(name, path, memo).encode())
     return h.hexdigest()
 
 
@@ -422,8 +428,7 @@ def compile_clip(entry: ClipEntry, settings: LibrarySettings) -> tuple[ClipInfo,
     if stop > motion.num_frames:
         raise _entry_error(entry.name, f"frames [{start}, {stop}] run past the file's {motion.num_frames} frames")
     motion = motion.slice(start, stop)
-    duration = (motion.num_frames - 1) / motion.fps
-    times = np.arange(int(np.floor(duration * settings.fps + 1e-9)) + 1) / settings.fps
+    times = frame_times(motion, settings.fps)
     if len(times) < settings.window:
         raise _entry_error(
             entry.name,
@@ -512,7 +517,8 @@ def load_library(
     except (OSError, ValueError):
         memo = {}
     before = json.dumps(memo, sort_keys=True)
-    key = cache_key(entries, settings, memo)
+    chains = read_chains(source)
+    key = cache_key(entries, settings, memo, chains)
     if json.dumps(memo, sort_keys=True) != before:
         cache_dir.mkdir(parents=True, exist_ok=True)
         memo_path.write_text(json.dumps(memo, sort_keys=True), encoding="utf-8")
@@ -524,5 +530,5 @@ def load_library(
         library = compile_library(entries, settings)
         _save(library, path, key)
     library.cache_path = path
-    library.chains = read_chains(source)
+    library.chains = chains
     return library

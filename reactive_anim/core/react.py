@@ -191,7 +191,8 @@ def react(
     clip = place(clip_raw, *placement)
     steps = max(1, round(settings.transition * motion.fps))
     clip_ef = _frames(clip, frame_e, steps + 1)  # E..F; a clip that ends sooner holds its last pose
-    target = blend(_frames(source or motion, frame_c, steps + 1), clip_ef, fade_weights(steps + 1))
+    # theta_blend: what the character was playing (an earlier reaction, if one plays) faded into the clip.
+    target = blend(_frames(motion, frame_c, steps + 1), clip_ef, fade_weights(steps + 1))
     cd = track(ragdoll, bc.state, target, steps / motion.fps, assist=settings.assist, workspace=workspace)
     clock.lap("cd")
     transition = blend(cd.motion, clip_ef, fade_weights(steps + 1))
@@ -256,7 +257,6 @@ def bake_reactions(
             raise Cancelled(f"bake cancelled before impact {k + 1} of {len(ordered)}")
         if progress is not None:
             progress(k, len(ordered), "react")
-        _check_impact(current, impact)
         reaction = react(current, impact, library, classifier, settings, source=motion, ragdoll=ragdoll,
                          workspace=workspace)  # fmt: skip
         current = reaction.motion if reaction.motion is not None else current

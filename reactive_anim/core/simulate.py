@@ -349,16 +349,17 @@ def state_from_mocap(ragdoll: Ragdoll, motion: Motion, frame: float, workspace: 
     """Ragdoll state at a (possibly fractional) frame: pose from the rotations, velocity by central
     differences over one frame either side, so the character keeps the motion's momentum; and the
     ground height the mocap stands on there (see ground_level)."""
-    _check_frame(motion, frame)
-    reach = GROUND_SPAN * motion.fps
-    table = _mocap_table(ragdoll, motion, frame - reach - 1, frame + reach + 1)
+    table = _start_table(ragdoll, motion, frame)
     with _workspace(ragdoll, workspace) as ws:
         return _state_from_table(ws, motion, frame, table)
 
 
-def _check_frame(motion: Motion, frame: float) -> None:
+def _start_table(ragdoll: Ragdoll, motion: Motion, frame: float) -> _MocapTable:
+    """The pose table a start state at `frame` reads: GROUND_SPAN and one frame either side."""
     if not (np.isfinite(frame) and 0 <= frame <= motion.num_frames - 1):
         raise SimulationError(f"frame {frame} is outside the motion's frames 0..{motion.num_frames - 1}")
+    reach = GROUND_SPAN * motion.fps
+    return _mocap_table(ragdoll, motion, frame - reach - 1, frame + reach + 1)
 
 
 def _state_from_table(ws: Workspace, motion: Motion, frame: float, table: _MocapTable) -> SimState:
@@ -913,10 +914,7 @@ def track(
     )
     with _workspace(ragdoll, workspace) as ws:
         if isinstance(start, Motion):
-            _check_frame(start, start_frame)
-            reach = GROUND_SPAN * start.fps
-            table = _mocap_table(ragdoll, start, start_frame - reach - 1, start_frame + reach + 1)
-            start = _state_from_table(ws, start, start_frame, table)
+            start = _state_from_table(ws, start, start_frame, _start_table(ragdoll, start, start_frame))
         result = _run(ws, start, plan)
     result.frames = result.frames + target_start
     return result

@@ -185,6 +185,12 @@ def forward_kinematics(
     return pos, rot
 
 
+def frame_times(motion: Motion, fps: float) -> np.ndarray:
+    """Times in seconds of the frames at `fps` that fit within the motion (from its first frame)."""
+    duration = (motion.num_frames - 1) / motion.fps
+    return np.arange(int(np.floor(duration * fps + 1e-9)) + 1) / fps
+
+
 def resample(motion: Motion, times: np.ndarray) -> Motion:
     """The motion at the given times in seconds (linear root and joint offsets, slerped rotations).
 

@@ -15,8 +15,8 @@ from reactive_anim.core.balance import RootAssist
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.ragdoll import build_ragdoll
 from reactive_anim.core.simulate import SimResult, Workspace, simulate_impact, track
-from reactive_anim.core.skeleton import Motion
 from tests.support.mocap import REPO
+from tests.support.poses import ground_axes
 from tests.support.tracking import kept_up_seconds
 
 ASSIST = RootAssist()
@@ -29,18 +29,10 @@ def clip(request):
     return request.param, motion, ragdoll, Workspace(ragdoll)
 
 
-def forward(motion: Motion, ragdoll, frame: int) -> np.ndarray:
-    pos = motion.global_positions()[frame]
-    sk = motion.skeleton
-    left = pos[sk.index(ragdoll.roles["hip_l"])] - pos[sk.index(ragdoll.roles["hip_r"])]
-    f = np.cross(left, [0.0, 0.0, 1.0])
-    return f / np.linalg.norm(f)
-
-
 def pushed(clip, strength: float, start: int = 60, seconds: float = 1.2) -> tuple[SimResult, SimResult]:
     """A chest push from behind, BC, then CD tracking the clip itself with the assist."""
     _, motion, ragdoll, workspace = clip
-    impact = Impact(start, ragdoll.roles["chest"], tuple(forward(motion, ragdoll, start)), strength)
+    impact = Impact(start, ragdoll.roles["chest"], tuple(ground_axes(motion, start, ragdoll.roles)[0]), strength)
     bc = simulate_impact(ragdoll, motion, impact, workspace=workspace)
     cd = track(ragdoll, bc.state, motion, seconds, target_start=int(bc.frames[-1]), assist=ASSIST, workspace=workspace)
     return bc, cd

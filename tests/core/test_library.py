@@ -250,6 +250,13 @@ def test_next_may_name_a_chained_clip_that_is_not_searched(tmp_path: Path) -> No
     assert [c.name for c in lib.clips] == ["fall.bvh"]  # the get-up is no search candidate
     assert lib.clip("fall.bvh").next == "getup.bvh"
     assert read_chains(tmp_path) == {"getup.bvh": tmp_path / "getup.bvh"}
+    # The bake plays the get-up: editing it gives the library a new cache key, so a kept Library
+    # (the Blender layer keeps one per key) is never served with the old get-up.
+    old = lib.clip_motion("getup.bvh", 30.0)
+    make_clip(tmp_path / "getup.bvh", 3, 60, 30.0)
+    edited = load_library(tmp_path, cache_dir=tmp_path / "cache")
+    assert edited.cache_path != lib.cache_path
+    assert not np.array_equal(edited.clip_motion("getup.bvh", 30.0).local_rot, old.local_rot)
     (tmp_path / "getup.bvh").unlink()
     with pytest.raises(LibraryError, match=r"clip 'getup\.bvh': file not found"):
         load_library(tmp_path, cache_dir=tmp_path / "cache")

@@ -14,6 +14,7 @@ from reactive_anim.core.impact import Impact
 from reactive_anim.core.library import load_library
 from reactive_anim.core.react import ReactionSettings, bake_reactions, character_ragdoll, react
 from tests.support.mocap import REPO
+from tests.support.poses import ground_axes
 
 B = 40  # a frame of the walk with a foot planted
 
@@ -34,12 +35,7 @@ def ragdoll(walk):
 
 
 def forward(motion, frame: int) -> np.ndarray:
-    """The walker's forward on the ground at a frame: perpendicular to the hip line."""
-    pos = motion.global_positions()[frame]
-    names = motion.skeleton.names
-    left = pos[names.index("thigh.L")] - pos[names.index("thigh.R")]
-    f = np.cross(left, [0.0, 0.0, 1.0])
-    return f / np.linalg.norm(f)
+    return ground_axes(motion, frame)[0]
 
 
 def test_an_override_forces_the_class_and_f_is_the_clips_pose(walk, library, ragdoll) -> None:

@@ -33,6 +33,7 @@ from reactive_anim.core.ragdoll import Ragdoll, build_ragdoll
 from reactive_anim.core.simulate import SimResult, simulate_impact, track
 from reactive_anim.core.skeleton import Motion
 from tests.support.mocap import REPO
+from tests.support.poses import ground_axes
 
 SAMPLE_CLIPS = REPO / "sample_clips"
 UP = np.array([0.0, 0.0, 1.0])
@@ -63,12 +64,7 @@ def clips() -> dict[str, Clip]:
 
 def character_axes(clip: Clip, frame: float) -> tuple[np.ndarray, np.ndarray]:
     """(forward, left) horizontal unit vectors of the character at a frame, from its hip line."""
-    positions = clip.motion.global_positions()[round(frame)]
-    index = clip.motion.skeleton.index
-    left = positions[index(clip.ragdoll.roles["hip_l"])] - positions[index(clip.ragdoll.roles["hip_r"])]
-    left[2] = 0.0
-    left /= np.linalg.norm(left)
-    return np.cross(left, UP), left
+    return ground_axes(clip.motion, frame, clip.ragdoll.roles)
 
 
 def bone(clip: Clip, role: str) -> str:

@@ -22,26 +22,18 @@ from reactive_anim.core.react import bake_reactions, character_ragdoll, react
 from reactive_anim.core.simulate import Workspace
 from reactive_anim.core.skeleton import Motion
 from tests.support.mocap import REPO
+from tests.support.poses import ground_axes
 
 from .common import report
 
 STEPS = ("bc", "classify", "search", "cd", "blend", "splice", "total")
 
 
-def _facing(motion: Motion, frame: int) -> np.ndarray:
-    pos = motion.global_positions()[frame]
-    names = motion.skeleton.names
-    left = pos[names.index("thigh.L")] - pos[names.index("thigh.R")]
-    forward = np.cross(left, [0.0, 0.0, 1.0])
-    return forward / np.linalg.norm(forward)
-
-
 def push_impacts(motion: Motion, frames: list[int]) -> list[Impact]:
     """Chest and pelvis pushes from around the character, 40-250 N·s, at the given frames."""
     out = []
     for k, frame in enumerate(frames):
-        forward = _facing(motion, frame)
-        left = np.cross([0.0, 0.0, 1.0], forward)
+        forward, left = ground_axes(motion, frame)
         angle = 2.0 * np.pi * k / 7.0
         direction = np.cos(angle) * forward + np.sin(angle) * left
         bone = ("chest", "pelvis")[k % 2]

@@ -1,0 +1,22 @@
+"""Where a character faces in a motion, for aiming pushes in tests and benchmarks."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from reactive_anim.core.roles import assign_roles
+from reactive_anim.core.skeleton import Motion
+
+UP = np.array([0.0, 0.0, 1.0])
+
+
+def ground_axes(motion: Motion, frame: float, roles: dict[str, str] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(forward, left) horizontal unit vectors of the character at a frame: left along the hip line
+    (left hip minus right hip, flattened), forward = left x up."""
+    roles = roles or motion.skeleton.roles or assign_roles(motion.skeleton)
+    pos = motion.global_positions()[round(frame)]
+    index = motion.skeleton.index
+    left = pos[index(roles["hip_l"])] - pos[index(roles["hip_r"])]
+    left[2] = 0.0
+    left /= np.linalg.norm(left)
+    return np.cross(left, UP), left
