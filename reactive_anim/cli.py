@@ -78,12 +78,12 @@ def _bake_command(args: argparse.Namespace) -> int:
     The operator also takes library_path='...' and model_path='...'; a failed bake raises
     RuntimeError with the message naming the marker, clip or file, and leaves the file as it was.
     """
-    from .blender import bake
+    from .blender import resources
 
     inputs = [p.resolve() for p in args.blend]
     try:
-        library = bake.open_library(args.library.resolve() if args.library else None)
-        classifier = bake.open_classifier(args.model.resolve() if args.model else None)
+        library = resources.open_library(args.library.resolve() if args.library else None)
+        classifier = resources.open_classifier(args.model.resolve() if args.model else None)
     except (ReactiveAnimError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -9,44 +9,41 @@ in a property group on the armature object, `Object.reactive_anim_bake`, with th
 per-impact summary for the panel. Baking an armature that already plays its reacted action bakes
 the original again and replaces the reacted action.
 
+A bake has three steps so that the UI never blocks: `prepare_bake` reads everything from the .blend
+on the main thread into a BakeJob; `BakeJob.run` computes from that alone (numpy in, numpy out, no
+bpy), so it may run in a worker thread; `commit_bake` writes the result on the main thread.
+`bake_armature` does the three in a row (background mode, scripts, the command line).
+
 Any failure leaves the file as it was: everything that can fail (markers, library, classifier,
 reading, the core) runs before anything is created, and whatever the bake created is removed and
 the assignment restored if writing fails. Errors name the marker, clip or file at fault.
-
-This is the synchronous bake (background mode, scripts, the command line); the modal version with
-a worker thread comes with the UI.
 """
 
-# Blender declares properties as annotations holding calls (`armature_name: StringProperty(...)`),
-# which are not type expressions; pyright is told so for this file only.
+# Blender declares properties as annotations holding calls (`summary: StringProperty(...)`), which
+# are not type expressions; pyright is told so for this file only.
 # pyright: reportInvalidTypeForm=false
 
 from __future__ import annotations
 
+import hashlib
 import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import Any, cast
 
 import bpy
 from bpy.props import PointerProperty, StringProperty
 
-from ..core.classifier import load_classifier
-from ..core.errors import BVHError, ClassifierError, ImpactError, LibraryError, ReactiveAnimError, SkeletonError
+from ..core.errors import BVHError, ImpactError, LibraryError, ReactiveAnimError, SkeletonError
 from ..core.impact import Impact
-from ..core.library import Library, load_library
+from ..core.library import Library
 from ..core.react import Baked, Reaction, ReactionClassifier, ReactionSettings, bake_reactions
 from ..core.skeleton import Motion
-from . import action_io, impacts
+from . import action_io, impacts, resources
 
-if TYPE_CHECKING:
-    from bpy._typing.rna_enums import OperatorReturnItems  # fake-bpy-module's name for the result set
-
-PACKAGE_DIR = Path(__file__).resolve().parents[1]  # reactive_anim/ (or the installed extension's folder)
 REACTED_SUFFIX = ".reacted"
-WHOLE_LIBRARY = "impacts without an override search the whole library"
 # The bake state a failed write puts back (the summary is only written after a bake succeeds).
 _RESTORED_STATE = ("original_action", "reacted_action", "original_slot", "rotation_modes")
 
@@ -55,87 +52,23 @@ Progress = Callable[[int, int, str], None]
 
 
 # ---------------------------------------------------------------------------------------------
-# Where things are: the library, the classifier model, the library cache
-
-
-def default_library_path() -> Path | None:
-    """The bundled sample library: `<package>/sample_library` in an extension that ships one, else
-    the repository's `sample_clips/` when running from a checkout; None if neither exists."""
-    for candidate in (PACKAGE_DIR / "sample_library", PACKAGE_DIR.parent / "sample_clips"):
-        if (candidate / "library.toml").is_file():
-            return candidate
-    return None
-
-
-def default_model_path() -> Path:
-    """The shipped classifier model (it may not exist yet: the bake then searches the whole library)."""
-    return PACKAGE_DIR / "models" / "reaction_classifier.onnx"
-
-
-def library_cache_dir() -> Path:
-    """Where compiled libraries are cached; the one place that decides it.
-
-    Never inside the library folder, which may be read-only (an installed extension, a shared
-    drive): the extension's user folder when running as an installed extension, else Blender's
-    user data folder (which follows BLENDER_USER_RESOURCES, so tests stay out of the user's own).
-    """
-    package = (__package__ or "").rpartition(".")[0]  # "bl_ext.<repo>.reactive_anim" or "reactive_anim"
-    if package.startswith("bl_ext."):
-        return Path(bpy.utils.extension_path_user(package, path="library_cache", create=True))
-    return Path(bpy.utils.user_resource("DATAFILES", path="reactive_anim/library_cache", create=True))
-
-
-def open_library(path: str | Path | None = None) -> Library:
-    """The compiled library at `path` (folder or .toml; "" or None: the bundled sample library)."""
-    if not path:
-        found = default_library_path()
-        if found is None:
-            raise LibraryError(
-                f"no reaction library was given and none is bundled (looked for {PACKAGE_DIR / 'sample_library'} "
-                f"and {PACKAGE_DIR.parent / 'sample_clips'}); choose a library folder"
-            )
-        path = found
-    path = Path(bpy.path.abspath(str(path)))
-    if not path.exists():
-        raise LibraryError(f"reaction library not found: {path}")
-    library = load_library(path, cache_dir=library_cache_dir())
-    # The same compiled library (its cache file is named by the content key) keeps its search index
-    # and clip motions from one bake to the next, instead of building them again.
-    return _OPEN_LIBRARIES.setdefault(library.cache_path or path, library)
-
-
-_OPEN_LIBRARIES: dict[Path, Library] = {}
-
-
-def open_classifier(model_path: str | Path | None = None) -> tuple[ReactionClassifier | None, str]:
-    """The classifier and a note saying how reaction classes will be chosen.
-
-    model_path "" or None: the shipped model if it exists, else none (the whole library is
-    searched). A model path that was asked for must exist (ClassifierError names it).
-    """
-    if model_path:
-        path = Path(bpy.path.abspath(str(model_path)))
-        if not path.is_file():
-            raise ClassifierError(f"classifier model not found: {path}")
-    else:
-        path = default_model_path()
-        if not path.is_file():
-            return None, f"no classifier model ({path} is missing): {WHOLE_LIBRARY}"
-    return load_classifier(path), f"classifier {path.name}"
-
-
-# ---------------------------------------------------------------------------------------------
 # What a bake replaced, kept on the armature object
 
 
 class REACTIVE_ANIM_PG_bake_state(bpy.types.PropertyGroup):
-    """On the armature object: what the last bake replaced (so clear can restore it) and its summary."""
+    """On the armature object: what the last bake replaced (so clear can restore it), its summary,
+    and the preview waiting to be accepted or discarded (preview.py)."""
 
     original_action: PointerProperty(name="Original Action", type=bpy.types.Action)
     reacted_action: PointerProperty(name="Reacted Action", type=bpy.types.Action)
     original_slot: StringProperty(name="Original Slot", description="Identifier of the original action's slot")
     rotation_modes: StringProperty(name="Rotation Modes", description="JSON: bone name -> rotation mode before")
     summary: StringProperty(name="Last Bake", description="One line per impact of the last bake")
+    rows: StringProperty(name="Last Bake Rows", description="JSON: per impact of the last bake, what the panel shows")
+    fingerprint: StringProperty(name="Baked Impacts", description="The impacts the last bake (or preview) was made of")
+    preview_object: PointerProperty(name="Preview Ghost", type=bpy.types.Object)
+    preview_action: PointerProperty(name="Preview Action", type=bpy.types.Action)
+    preview_result: StringProperty(name="Preview", description="JSON: what the preview becomes once accepted")
 
 
 def bake_state(armature: bpy.types.Object) -> REACTIVE_ANIM_PG_bake_state:
@@ -160,8 +93,26 @@ def source_action(armature: bpy.types.Object) -> bpy.types.Action:
     return action
 
 
+def impacts_fingerprint(scene: bpy.types.Scene, armature_name: str) -> str:
+    """A short digest of the armature's impact markers (frame, bone, push, reaction): the panel
+    compares it with the last bake's to say the bake is out of date."""
+    parts = []
+    for marker in impacts.impact_markers(scene, armature_name):
+        p = impacts.impact_data(marker)
+        parts.append(f"{p.uid} {marker.frame} {p.bone} {tuple(p.direction)} {p.strength} {p.reaction}")
+    return hashlib.sha1("\n".join(parts).encode()).hexdigest()[:16]
+
+
+def armature_named(name: str) -> bpy.types.Object:
+    """The armature object called `name`; SkeletonError names what is missing."""
+    armature = bpy.data.objects.get(name) if name else None
+    if armature is None or armature.type != "ARMATURE":
+        raise SkeletonError(f"there is no armature called '{name}'" if name else "name the armature (armature_name)")
+    return armature
+
+
 # ---------------------------------------------------------------------------------------------
-# Bake
+# Results
 
 
 @dataclass(frozen=True)
@@ -188,91 +139,78 @@ class BakeResult:
         )
         return "\n".join([head, *self.impact_lines()])
 
+    def rows(self) -> str:
+        """Per impact, as JSON for the panel: marker, frame, bone, class, how chosen, clip, cost."""
+        return json.dumps(
+            [
+                {
+                    "marker": name,
+                    "frame": frame,
+                    "bone": r.impact.bone,
+                    "class": r.reaction_class,
+                    "chosen_by": _chosen_by(r),
+                    "clip": r.clip,
+                    "then": r.chained or "",
+                    "cost": round(r.cost, 2),
+                    "accepted": r.accepted,
+                }
+                for (name, frame), r in zip(self.markers, self.reactions, strict=True)
+            ]
+        )
+
+
+def _chosen_by(r: Reaction) -> str:
+    if r.impact.reaction is not None:
+        return "override"
+    if r.probabilities:
+        return f"classifier, p={r.probabilities.get(r.reaction_class, 0.0):.2f}"
+    return "whole-library search"
+
 
 def _impact_line(name: str, frame: int, r: Reaction) -> str:
-    if r.impact.reaction is not None:
-        chosen_by = "override"
-    elif r.probabilities:
-        chosen_by = f"classifier, p={r.probabilities.get(r.reaction_class, 0.0):.2f}"
-    else:
-        chosen_by = "whole-library search"
     over = "" if r.accepted else " (over the search threshold)"
     then = f", then {r.chained}" if r.chained else ""
     return (
-        f"frame {frame} '{name}' {r.impact.bone}: {r.reaction_class} ({chosen_by}), clip {r.clip}{then}, "
+        f"frame {frame} '{name}' {r.impact.bone}: {r.reaction_class} ({_chosen_by(r)}), clip {r.clip}{then}, "
         f"cost {r.cost:.1f}{over}, {r.timings.get('total', 0.0) * 1000:.0f} ms"
     )
 
 
-def bake_armature(
-    scene: bpy.types.Scene,
-    armature: bpy.types.Object,
-    library: Library | str | Path | None = None,
-    model_path: str | Path | None = None,
-    settings: ReactionSettings | None = None,
-    progress: Progress | None = None,
-    classifier: tuple[ReactionClassifier | None, str] | None = None,
-) -> BakeResult:
-    """Bake the armature's impact markers into `<action>.reacted`, assigned; the original untouched.
-
-    library: a loaded Library, or its folder / .toml ("" or None: the bundled sample library).
-    model_path: the classifier model ("" or None: the shipped one if present). classifier: an
-    already opened (classifier, note) from open_classifier, which then replaces model_path.
-    Raises a ReactiveAnimError naming the marker, clip or file at fault, leaving everything as it was.
-    """
-    start = time.perf_counter()
-    if not isinstance(armature.data, bpy.types.Armature):
-        raise SkeletonError(f"object '{armature.name}' is not an armature")
-    if armature.mode == "EDIT":
-        raise SkeletonError(f"armature '{armature.name}' is in Edit Mode; leave it to bake")
-    # Everything that can fail on the animator's data runs before anything is created.
-    source = source_action(armature)
-    first, last = round(source.frame_range[0]), round(source.frame_range[1])
-    markers = impacts.impact_markers(scene, armature.name)
-    if not markers:
-        raise ImpactError(f"armature '{armature.name}' has no impact markers to react to")
-    impact_list = impacts.read_impacts(scene, armature, (first, last))
-    opened = library if isinstance(library, Library) else open_library(library)
-    model, note = classifier if classifier is not None else open_classifier(model_path)
-    motion = action_io.read_motion(armature, source, (first, last))
-    labels = [impacts.marker_label(m) for m in markers]
-    for label, impact in zip(labels, impact_list, strict=True):
-        if impact.bone not in motion.skeleton.names:
-            raise ImpactError(f"{label} is on bone '{impact.bone}', which is not part of the animated skeleton")
-    baked = _react(motion, impact_list, opened, model, settings, labels, progress)
-    reacted = _write_and_assign(armature, source, baked, first)
-    result = BakeResult(
-        armature=armature.name,
-        original_action=source.name,
-        reacted_action=reacted.name,
-        frame_range=(first, first + baked.motion.num_frames - 1),
-        markers=[(m.name, m.frame) for m in markers],
-        reactions=baked.reactions,
-        classifier_note=note,
-        seconds=time.perf_counter() - start,
-    )
-    bake_state(armature).summary = result.summary()
-    return result
+# ---------------------------------------------------------------------------------------------
+# Prepare (main thread), run (any thread), commit (main thread)
 
 
-def _react(
-    motion: Motion,
-    impact_list: list[Impact],
-    library: Library,
-    classifier: ReactionClassifier | None,
-    settings: ReactionSettings | None,
-    labels: list[str],
-    progress: Progress | None,
-) -> Baked:
-    """The core bake; an error raised while an impact is made is prefixed with its marker."""
-    tracker = _MarkerProgress(labels, progress)
-    try:
-        return bake_reactions(motion, impact_list, library, classifier, settings, progress=tracker)
-    except ReactiveAnimError as exc:
-        if tracker.current is None:
-            raise
-        kind = LibraryError if isinstance(exc, BVHError) else type(exc)  # BVHError's arguments differ
-        raise kind(f"{tracker.current}: {exc}") from exc
+@dataclass(frozen=True)
+class BakeJob:
+    """Everything a bake reads from the .blend, read on the main thread. `run` computes from this
+    alone, so it may run in a worker thread while the animator keeps working."""
+
+    armature: str
+    source_action: str
+    first_frame: int
+    markers: list[tuple[str, int]]  # (name, frame) in impact order
+    labels: list[str]  # how errors name each marker
+    impacts: list[Impact]
+    motion: Motion
+    library: Library
+    classifier: ReactionClassifier | None
+    classifier_note: str
+    settings: ReactionSettings | None
+    fingerprint: str
+
+    def run(self, progress: Progress | None = None, cancel: Callable[[], bool] | None = None) -> Baked:
+        """The core bake (no bpy); an error raised while an impact is made is prefixed with its marker.
+        cancel() returning True stops it with core.errors.Cancelled."""
+        tracker = _MarkerProgress(self.labels, progress)
+        try:
+            return bake_reactions(
+                self.motion, self.impacts, self.library, self.classifier, self.settings, progress=tracker, cancel=cancel
+            )
+        except ReactiveAnimError as exc:
+            if tracker.current is None:
+                raise
+            kind = LibraryError if isinstance(exc, BVHError) else type(exc)  # BVHError's arguments differ
+            raise kind(f"{tracker.current}: {exc}") from exc
 
 
 class _MarkerProgress:
@@ -291,10 +229,123 @@ class _MarkerProgress:
             self.progress(k, n, self.current or step)
 
 
-def _write_and_assign(
-    armature: bpy.types.Object, source: bpy.types.Action, baked: Baked, first: int
+def prepare_bake(
+    scene: bpy.types.Scene,
+    armature: bpy.types.Object,
+    library: Library | str | Path | None = None,
+    model_path: str | Path | None = None,
+    settings: ReactionSettings | None = None,
+    classifier: tuple[ReactionClassifier | None, str] | None = None,
+) -> BakeJob:
+    """Read what the armature's bake needs; raises a ReactiveAnimError naming the marker, clip or
+    file at fault. Changes nothing in the .blend. Arguments as bake_armature's."""
+    if not isinstance(armature.data, bpy.types.Armature):
+        raise SkeletonError(f"object '{armature.name}' is not an armature")
+    if armature.mode == "EDIT":
+        raise SkeletonError(f"armature '{armature.name}' is in Edit Mode; leave it to bake")
+    source = source_action(armature)
+    first, last = round(source.frame_range[0]), round(source.frame_range[1])
+    markers = impacts.impact_markers(scene, armature.name)
+    if not markers:
+        raise ImpactError(f"armature '{armature.name}' has no impact markers to react to")
+    impact_list = impacts.read_impacts(scene, armature, (first, last))
+    opened = library if isinstance(library, Library) else resources.open_library(library)
+    model, note = classifier if classifier is not None else resources.open_classifier(model_path)
+    motion = action_io.read_motion(armature, source, (first, last))
+    labels = [impacts.marker_label(m) for m in markers]
+    for label, impact in zip(labels, impact_list, strict=True):
+        if impact.bone not in motion.skeleton.names:
+            raise ImpactError(f"{label} is on bone '{impact.bone}', which is not part of the animated skeleton")
+    return BakeJob(
+        armature=armature.name,
+        source_action=source.name,
+        first_frame=first,
+        markers=[(m.name, m.frame) for m in markers],
+        labels=labels,
+        impacts=impact_list,
+        motion=motion,
+        library=opened,
+        classifier=model,
+        classifier_note=note,
+        settings=settings,
+        fingerprint=impacts_fingerprint(scene, armature.name),
+    )
+
+
+def job_result(job: BakeJob, baked: Baked, reacted_action: str, seconds: float) -> BakeResult:
+    return BakeResult(
+        armature=job.armature,
+        original_action=job.source_action,
+        reacted_action=reacted_action,
+        frame_range=(job.first_frame, job.first_frame + baked.motion.num_frames - 1),
+        markers=job.markers,
+        reactions=baked.reactions,
+        classifier_note=job.classifier_note,
+        seconds=seconds,
+    )
+
+
+def job_target(job: BakeJob) -> tuple[bpy.types.Object, bpy.types.Action]:
+    """The job's armature and source action, checked unchanged since prepare_bake (the animator may
+    have worked on while the bake ran in the background)."""
+    armature = armature_named(job.armature)
+    source = source_action(armature)
+    if source.name != job.source_action:
+        raise SkeletonError(
+            f"armature '{job.armature}' now plays '{source.name}', not '{job.source_action}' as when the bake began; "
+            "bake again"
+        )
+    return armature, source
+
+
+def commit_bake(job: BakeJob, baked: Baked, seconds: float) -> BakeResult:
+    """Write the reacted motion as `<action>.reacted` and assign it (main thread)."""
+    armature, source = job_target(job)
+    name = source.name + REACTED_SUFFIX
+    reacted = assign_reacted(
+        armature, source, lambda: action_io.write_motion(armature, baked.motion, name, frame_start=job.first_frame)
+    )
+    result = job_result(job, baked, reacted.name, seconds)
+    record_result(armature, result.summary(), result.rows(), job.fingerprint)
+    return result
+
+
+def record_result(armature: bpy.types.Object, summary: str, rows: str, fingerprint: str) -> None:
+    state = bake_state(armature)
+    state.summary, state.rows, state.fingerprint = summary, rows, fingerprint
+
+
+def bake_armature(
+    scene: bpy.types.Scene,
+    armature: bpy.types.Object,
+    library: Library | str | Path | None = None,
+    model_path: str | Path | None = None,
+    settings: ReactionSettings | None = None,
+    progress: Progress | None = None,
+    classifier: tuple[ReactionClassifier | None, str] | None = None,
+) -> BakeResult:
+    """Bake the armature's impact markers into `<action>.reacted`, assigned; the original untouched.
+
+    library: a loaded Library, or its folder / .toml ("" or None: the bundled sample library).
+    model_path: the classifier model ("" or None: the shipped one if present). classifier: an
+    already opened (classifier, note) from resources.open_classifier, which then replaces model_path.
+    Raises a ReactiveAnimError naming the marker, clip or file at fault, leaving everything as it was.
+    """
+    start = time.perf_counter()
+    job = prepare_bake(scene, armature, library, model_path, settings, classifier)
+    baked = job.run(progress)
+    return commit_bake(job, baked, time.perf_counter() - start)
+
+
+# ---------------------------------------------------------------------------------------------
+# Assigning a reacted action, and undoing it
+
+
+def assign_reacted(
+    armature: bpy.types.Object, source: bpy.types.Action, make: Callable[[], bpy.types.Action]
 ) -> bpy.types.Action:
-    """Write the new action and assign it; on any failure remove it and restore what was there."""
+    """Assign the reacted action `make()` returns (a new action this call owns); on any failure
+    remove it and restore what was there. Replaces the previous bake's action and takes its name."""
     adt = armature.animation_data
     assert adt is not None  # source_action found an action on it
     state = bake_state(armature)
@@ -306,7 +357,7 @@ def _write_and_assign(
     name = source.name + REACTED_SUFFIX
     created = None
     try:
-        created = action_io.write_motion(armature, baked.motion, name, frame_start=first)
+        created = make()
         _assign(adt, created, None)
         if not rebake:
             state.original_slot = saved_slot.identifier if saved_slot is not None else ""
@@ -317,16 +368,21 @@ def _write_and_assign(
         if created is not None:
             bpy.data.actions.remove(created)
         _assign(adt, saved_action, saved_slot)
-        _restore_rotation_modes(armature, modes)
+        restore_rotation_modes(armature, modes)
         for key, value in saved_state.items():
             setattr(state, key, value)
         raise
     # Past the point of failure: retire the previous bake's action and take its name.
     if previous is not None:
         bpy.data.actions.remove(previous)
-        created.name = name
+    created.name = name
     source.use_fake_user = True
     return created
+
+
+def assign_action(ob: bpy.types.Object, action: bpy.types.Action) -> None:
+    """Play `action` on the object (through its first object slot in Blender 4.4+)."""
+    _assign(ob.animation_data or ob.animation_data_create(), action, None)
 
 
 def _slot(adt: bpy.types.AnimData) -> Any:
@@ -348,7 +404,7 @@ def _assign(adt: bpy.types.AnimData, action: bpy.types.Action | None, slot: Any)
         cast(Any, adt).action_slot = slot
 
 
-def _restore_rotation_modes(armature: bpy.types.Object, modes: dict[str, str]) -> None:
+def restore_rotation_modes(armature: bpy.types.Object, modes: dict[str, str]) -> None:
     for bone_name, mode in modes.items():
         pose_bone = armature.pose.bones.get(bone_name)
         if pose_bone is not None:
@@ -370,95 +426,8 @@ def clear_bake(armature: bpy.types.Object) -> str:
     state.reacted_action = None
     bpy.data.actions.remove(reacted)
     if state.rotation_modes:
-        _restore_rotation_modes(armature, json.loads(state.rotation_modes))
+        restore_rotation_modes(armature, json.loads(state.rotation_modes))
     state.original_action = None
-    state.original_slot = ""
-    state.rotation_modes = ""
-    state.summary = ""
+    for key in ("original_slot", "rotation_modes", "summary", "rows", "fingerprint"):
+        setattr(state, key, "")
     return original.name
-
-
-# ---------------------------------------------------------------------------------------------
-# Operators
-
-
-def _armature(name: str) -> bpy.types.Object:
-    armature = bpy.data.objects.get(name)
-    if armature is None or armature.type != "ARMATURE":
-        raise SkeletonError(f"there is no armature called '{name}'" if name else "name the armature (armature_name)")
-    return armature
-
-
-def _has_armature(cls: type[bpy.types.Operator], context: bpy.types.Context) -> bool:
-    if context.scene is None or not any(ob.type == "ARMATURE" for ob in bpy.data.objects):
-        cls.poll_message_set("There is no armature in this file")
-        return False
-    return True
-
-
-class REACTIVE_ANIM_OT_bake(bpy.types.Operator):
-    """Bake the armature's impact markers into a new action with the reactions; the original is kept"""
-
-    bl_idname = "reactive_anim.bake"
-    bl_label = "Bake Reactions"
-    bl_options = {"REGISTER", "UNDO"}
-
-    armature_name: StringProperty(name="Armature", description="The armature object to bake")
-    library_path: StringProperty(
-        name="Library",
-        description="Reaction library folder or .toml (default: the bundled sample library)",
-        subtype="FILE_PATH",
-    )
-    model_path: StringProperty(
-        name="Classifier Model", description="ONNX classifier model (default: the shipped one)", subtype="FILE_PATH"
-    )
-
-    @classmethod
-    def poll(cls, context: bpy.types.Context) -> bool:
-        return _has_armature(cls, context)
-
-    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
-        wm = context.window_manager
-        try:
-            armature = _armature(self.armature_name)
-            wm.progress_begin(0, 1)
-            try:
-                result = bake_armature(
-                    context.scene,
-                    armature,
-                    self.library_path,
-                    self.model_path,
-                    progress=lambda k, n, _what: wm.progress_update(k / max(n, 1)),
-                )
-            finally:
-                wm.progress_end()
-        except (ReactiveAnimError, OSError) as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        for line in result.summary().splitlines():
-            self.report({"INFO"}, line)
-        return {"FINISHED"}
-
-
-class REACTIVE_ANIM_OT_clear_bake(bpy.types.Operator):
-    """Go back to the original action and remove the baked reactions"""
-
-    bl_idname = "reactive_anim.clear_bake"
-    bl_label = "Clear Reactions"
-    bl_options = {"REGISTER", "UNDO"}
-
-    armature_name: StringProperty(name="Armature", description="The armature object whose bake is cleared")
-
-    @classmethod
-    def poll(cls, context: bpy.types.Context) -> bool:
-        return _has_armature(cls, context)
-
-    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
-        try:
-            armature = _armature(self.armature_name)
-            original = clear_bake(armature)
-        except ReactiveAnimError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self.report({"INFO"}, f"'{armature.name}' plays '{original}' again; the reacted action is removed")
-        return {"FINISHED"}

@@ -18,17 +18,14 @@ from __future__ import annotations
 
 import uuid
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, cast
+from typing import cast
 
 import bpy
-from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty, IntProperty, StringProperty
+from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty, StringProperty
 
 from ..core.classes import CLASS_SLUGS
-from ..core.errors import ImpactError, ReactiveAnimError, SkeletonError
+from ..core.errors import ImpactError, SkeletonError
 from ..core.impact import Impact
-
-if TYPE_CHECKING:
-    from bpy._typing.rna_enums import OperatorReturnItems  # fake-bpy-module's name for the result set
 
 AUTO = "auto"
 DEFAULT_STRENGTH = 100.0  # N·s, a strong push (core/impact.py gives the scale)
@@ -178,57 +175,3 @@ def read_impacts(
 def marker_label(marker: bpy.types.TimelineMarker) -> str:
     """How errors and reports name a marker: `impact marker 'hit_02' at frame 130`."""
     return f"impact marker '{marker.name}' at frame {marker.frame}"
-
-
-# ---------------------------------------------------------------------------------------------
-# Operator
-
-
-class REACTIVE_ANIM_OT_add_impact(bpy.types.Operator):
-    """Add an impact marker on the timeline for an armature"""
-
-    bl_idname = "reactive_anim.add_impact"
-    bl_label = "Add Impact"
-    bl_options = {"REGISTER", "UNDO"}
-
-    armature_name: StringProperty(name="Armature", description="The armature object the impact hits")
-    bone: StringProperty(name="Bone", description="The bone that is hit")
-    frame: IntProperty(name="Frame", description="Timeline frame of the impact (default: the current frame)")
-    direction: FloatVectorProperty(
-        name="Direction", description="World direction of the push", size=3, subtype="XYZ", default=(1.0, 0.0, 0.0)
-    )
-    strength: FloatProperty(
-        name="Strength", description="Impulse in N·s", default=DEFAULT_STRENGTH, min=0.0, soft_min=10.0, soft_max=400.0
-    )
-    reaction: EnumProperty(name="Reaction", items=REACTION_ITEMS)
-    marker_name: StringProperty(name="Marker Name", description="Default: hit_01, hit_02, ...")
-
-    @classmethod
-    def poll(cls, context: bpy.types.Context) -> bool:
-        if context.scene is None:
-            cls.poll_message_set("There is no scene to put the impact marker in")
-            return False
-        return True
-
-    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
-        armature = bpy.data.objects.get(self.armature_name)
-        if armature is None or armature.type != "ARMATURE":
-            self.report({"ERROR"}, f"there is no armature called '{self.armature_name}'")
-            return {"CANCELLED"}
-        frame = self.frame if self.properties.is_property_set("frame") else context.scene.frame_current
-        try:
-            marker = add_impact(
-                context.scene,
-                armature,
-                self.bone,
-                frame,
-                tuple(self.direction),
-                self.strength,
-                self.reaction,
-                self.marker_name,
-            )
-        except ReactiveAnimError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self.report({"INFO"}, f"Added {marker_label(marker)} on '{armature.name}' bone '{self.bone}'")
-        return {"FINISHED"}

@@ -62,3 +62,8 @@ class REACTIVE_ANIM_OT_import_bvh(bpy.types.Operator, ImportHelper):
         assert isinstance(data, bpy.types.Armature) and action is not None  # import_bvh made both
         self.report({"INFO"}, f"Imported '{armature.name}' with action '{action.name}' ({len(data.bones)} bones)")
         return {"FINISHED"}
+
+
+def draw_import_entry(self: bpy.types.Menu, context: bpy.types.Context) -> None:
+    """File > Import > Mocap for Reactions (.bvh)."""
+    self.layout.operator(REACTIVE_ANIM_OT_import_bvh.bl_idname, text="Mocap for Reactions (.bvh)")

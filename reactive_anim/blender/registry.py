@@ -1,30 +1,45 @@
-"""Every class the add-on registers, in order, and the menu entries. Adding an operator = one line."""
+"""Every class the add-on registers, in order, the menu entries and the watchers. Adding an operator = one line."""
 
 from __future__ import annotations
 
 import bpy
 
-from . import bake, impacts, operators, panels
+from . import bake, bake_ops, impact_ops, impacts, marker_sync, operators, overlay, panels, settings
 
 CLASSES = (
     impacts.REACTIVE_ANIM_PG_impact,
     bake.REACTIVE_ANIM_PG_bake_state,
+    settings.REACTIVE_ANIM_PG_scene,
     operators.REACTIVE_ANIM_OT_import_bvh,
-    impacts.REACTIVE_ANIM_OT_add_impact,
-    bake.REACTIVE_ANIM_OT_bake,
-    bake.REACTIVE_ANIM_OT_clear_bake,
+    impact_ops.REACTIVE_ANIM_OT_add_impact,
+    impact_ops.REACTIVE_ANIM_OT_aim_impact,
+    impact_ops.REACTIVE_ANIM_OT_jump_to_impact,
+    impact_ops.REACTIVE_ANIM_OT_remove_impact,
+    bake_ops.REACTIVE_ANIM_OT_bake,
+    bake_ops.REACTIVE_ANIM_OT_preview,
+    bake_ops.REACTIVE_ANIM_OT_accept_preview,
+    bake_ops.REACTIVE_ANIM_OT_discard_preview,
+    bake_ops.REACTIVE_ANIM_OT_clear_bake,
+    panels.REACTIVE_ANIM_UL_impacts,
+    panels.REACTIVE_ANIM_MT_reactions,
     panels.REACTIVE_ANIM_PT_main,
+    panels.REACTIVE_ANIM_PT_impacts,
+    panels.REACTIVE_ANIM_PT_bake,
 )
 
 # Property groups attached to Blender's own types: (type, attribute, group). Registered after CLASSES.
 PROPERTIES = (
     (bpy.types.TimelineMarker, "reactive_anim", impacts.REACTIVE_ANIM_PG_impact),
     (bpy.types.Object, "reactive_anim_bake", bake.REACTIVE_ANIM_PG_bake_state),
+    (bpy.types.Scene, "reactive_anim", settings.REACTIVE_ANIM_PG_scene),
 )
 
-
-def _menu_import(self: bpy.types.Menu, context: bpy.types.Context) -> None:
-    self.layout.operator(operators.REACTIVE_ANIM_OT_import_bvh.bl_idname, text="Mocap for Reactions (.bvh)")
+# Blender's menus that get an entry: (menu, draw function).
+MENUS = (
+    (bpy.types.TOPBAR_MT_file_import, operators.draw_import_entry),
+    (bpy.types.VIEW3D_MT_object, panels.draw_menu_entry),
+    (bpy.types.VIEW3D_MT_pose, panels.draw_menu_entry),
+)
 
 
 def register() -> None:
@@ -32,11 +47,17 @@ def register() -> None:
         bpy.utils.register_class(cls)
     for owner, attribute, group in PROPERTIES:
         setattr(owner, attribute, bpy.props.PointerProperty(type=group))
-    bpy.types.TOPBAR_MT_file_import.append(_menu_import)
+    for menu, entry in MENUS:
+        menu.append(entry)
+    marker_sync.register()
+    overlay.register()
 
 
 def unregister() -> None:
-    bpy.types.TOPBAR_MT_file_import.remove(_menu_import)
+    overlay.unregister()
+    marker_sync.unregister()
+    for menu, entry in reversed(MENUS):
+        menu.remove(entry)
     for owner, attribute, _group in reversed(PROPERTIES):
         delattr(owner, attribute)
     for cls in reversed(CLASSES):

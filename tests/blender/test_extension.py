@@ -33,7 +33,8 @@ HOST_PLATFORM = {
     ("darwin", "arm64"): "macos-arm64",
 }.get((sys.platform, platform.machine()))
 ADDON_MODULE = "bl_ext.user_default.reactive_anim"
-SUBPROCESS_TIMEOUT_S = 600
+SUBPROCESS_TIMEOUT_S = 600  # install, the first compile of the bundled library and a bake take well under that
+WALK_BVH = REPO / "sample_clips" / "walk.bvh"  # 264 frames at 60 fps, keys on frames 1-264
 
 # A two-joint skeleton in centimetres, small enough to read at a glance.
 TINY_BVH = """HIERARCHY
@@ -60,6 +61,7 @@ Frame Time: 0.0333333
 
 # Runs inside the subprocess: install, inspect, use, uninstall; one JSON line of findings.
 INSTALL_SCRIPT = r"""
+import hashlib
 import json
 import os
 import sys
@@ -76,6 +78,37 @@ found = {}
 
 def user_repo():
     return next(r for r in bpy.context.preferences.extensions.repos if r.module == "user_default")
+
+
+def installed_function(name):  # the installed package's own bake helpers (blender/bake.py or resources.py)
+    for module_name in ("bake", "resources"):
+        module = sys.modules.get(args["addon_module"] + ".blender." + module_name)
+        if hasattr(module, name):
+            return getattr(module, name)
+    raise AttributeError("the installed extension has no blender.bake." + name)
+
+
+def fcurves(action):  # every F-curve, whichever action API this Blender has (4.2, or 4.4+'s layers)
+    if getattr(action, "layers", None):
+        return [fc for layer in action.layers for strip in layer.strips
+                for bag in strip.channelbags for fc in bag.fcurves]
+    return list(action.fcurves)
+
+
+def fingerprint(action):  # F-curve and key counts and a digest of every key: did the action change?
+    import numpy
+
+    digest, keys = hashlib.sha256(), 0
+    curves = sorted(fcurves(action), key=lambda fc: (fc.data_path, fc.array_index))
+    for fc in curves:
+        points = fc.keyframe_points
+        digest.update("{}[{}]".format(fc.data_path, fc.array_index).encode())
+        for name in ("co", "handle_left", "handle_right"):
+            values = numpy.empty(len(points) * 2, dtype=numpy.float32)
+            points.foreach_get(name, values)
+            digest.update(values.tobytes())
+        keys += len(points)
+    return {"fcurves": len(curves), "keys": keys, "sha256": digest.hexdigest()}
 
 
 try:
@@ -112,6 +145,51 @@ try:
         filepath=args["bvh"], unit="cm", armature_name="TinyRig"))
     rig = bpy.data.objects.get("TinyRig")
     found["imported_bones"] = len(rig.data.bones) if rig else 0
+
+    # The sample scene with what the zip bundles: the repository's walk, two impacts, and a bake
+    # with no library or model given, so the bundled sample library and classifier model.
+    found["default_library"] = str(installed_function("default_library_path")())
+    found["default_model"] = str(installed_function("default_model_path")())
+    found["default_model_exists"] = installed_function("default_model_path")().is_file()
+    found["walk_import"] = sorted(bpy.ops.reactive_anim.import_bvh(
+        filepath=args["walk_bvh"], unit="auto", armature_name="Walker"))
+    walker = bpy.data.objects["Walker"]
+    original = walker.animation_data.action
+    found["original_action"] = original.name
+    first, last = (round(f) for f in original.frame_range)
+    found["original_frame_range"] = [first, last]
+    found["original_before"] = fingerprint(original)
+    rotation_modes = {pb.name: pb.rotation_mode for pb in walker.pose.bones}
+    scene = bpy.context.scene
+    second = round(scene.render.fps / scene.render.fps_base)
+    found["impact_frames"] = [first + second, first + 2 * second]
+    found["add_impact"] = [
+        sorted(bpy.ops.reactive_anim.add_impact(  # a push from behind (the walk heads along -Y)
+            armature_name="Walker", bone="chest", frame=first + second, direction=(0.0, -1.0, 0.0), strength=120.0)),
+        sorted(bpy.ops.reactive_anim.add_impact(  # a second later, the hips from the side
+            armature_name="Walker", bone="pelvis", frame=first + 2 * second, direction=(1.0, 0.0, 0.0),
+            strength=90.0)),
+    ]
+    found["bake"] = sorted(bpy.ops.reactive_anim.bake(armature_name="Walker"))
+    state = walker.reactive_anim_bake
+    reacted = state.reacted_action
+    found["assigned_after_bake"] = walker.animation_data.action.name
+    found["reacted_action"] = reacted.name if reacted else None
+    found["reacted_frame_range"] = [round(f) for f in reacted.frame_range] if reacted else None
+    found["reacted_keys"] = fingerprint(reacted)["keys"] if reacted else 0
+    found["state_original_action"] = state.original_action.name if state.original_action else None
+    found["summary"] = state.summary
+    found["original_after_bake"] = fingerprint(bpy.data.actions[found["original_action"]])
+    # The library the bake opened (open_library() hands back the same compiled one): its clips and cache.
+    library = installed_function("open_library")()
+    found["library_clip_paths"] = sorted(str(c.path) for c in library.clips)
+    found["library_cache"] = str(library.cache_path)
+    found["clear_bake"] = sorted(bpy.ops.reactive_anim.clear_bake(armature_name="Walker"))
+    found["assigned_after_clear"] = walker.animation_data.action.name
+    found["actions_after_clear"] = sorted(a.name for a in bpy.data.actions)
+    found["original_after_clear"] = fingerprint(bpy.data.actions[found["original_action"]])
+    found["rotation_modes_restored"] = {pb.name: pb.rotation_mode for pb in walker.pose.bones} == rotation_modes
+    found["summary_after_clear"] = walker.reactive_anim_bake.summary
 
     addon_utils.disable(args["addon_module"], default_set=True)
     found["uninstall"] = sorted(bpy.ops.extensions.package_uninstall(
@@ -182,6 +260,7 @@ def installed(extension_zip: Path, tmp_path_factory: pytest.TempPathFactory) -> 
         "runtime": str(_blender_runtime(work / "runtime")),
         "zip": str(extension_zip),
         "bvh": str(work / "tiny.bvh"),
+        "walk_bvh": str(WALK_BVH),  # the repository's sample walk: not in the zip
         "addon_module": ADDON_MODULE,
     }
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME", "PYTHONSTARTUP")}
@@ -240,6 +319,64 @@ def test_numpy_is_blenders_own_not_bundled(installed: dict) -> None:
 def test_installed_operator_imports_a_bvh(installed: dict) -> None:
     assert installed["import_bvh"] == ["FINISHED"]
     assert installed["imported_bones"] == 2
+
+
+def test_installed_operators_bake_the_sample_walk(installed: dict) -> None:
+    assert installed["walk_import"] == ["FINISHED"]
+    assert installed["add_impact"] == [["FINISHED"], ["FINISHED"]]
+    assert installed["bake"] == ["FINISHED"]
+    original = installed["original_action"]
+    assert installed["reacted_action"] == f"{original}.reacted"
+    assert installed["assigned_after_bake"] == installed["reacted_action"]
+    assert installed["state_original_action"] == original
+    first, last = installed["original_frame_range"]
+    reacted_first, reacted_last = installed["reacted_frame_range"]
+    assert reacted_first == first and reacted_last >= last, (installed["reacted_frame_range"], first, last)
+    assert installed["reacted_keys"] > 0
+
+
+def test_bake_used_the_bundled_classifier_model(installed: dict) -> None:
+    head, *impact_lines = installed["summary"].splitlines()
+    reacted = installed["reacted_action"]
+    assert head.startswith(f"'Walker': 2 impacts baked into '{reacted}'"), head
+    assert head.endswith("; classifier reaction_classifier.onnx"), head
+    assert "no classifier model" not in installed["summary"]
+    chest, pelvis = installed["impact_frames"]
+    assert len(impact_lines) == 2, impact_lines
+    assert impact_lines[0].startswith(f"frame {chest} 'hit_01' chest: "), impact_lines[0]
+    assert impact_lines[1].startswith(f"frame {pelvis} 'hit_02' pelvis: "), impact_lines[1]
+    assert all("(classifier, p=" in line for line in impact_lines), impact_lines
+
+
+def test_default_library_and_model_resolve_inside_the_installed_extension(installed: dict) -> None:
+    package = str(Path(installed["addon_file"]).parent)
+    assert _inside(package, installed["user_resources"]), package
+    library, model = installed["default_library"], installed["default_model"]
+    assert Path(library).resolve() == Path(package, "sample_library").resolve(), library
+    assert Path(model).resolve() == Path(package, "models", "reaction_classifier.onnx").resolve(), model
+    assert installed["default_model_exists"]
+    # The bake read its clips from there, and cached the compiled library outside the package folder.
+    clips = installed["library_clip_paths"]
+    assert clips and all(_inside(c, library) for c in clips), clips
+    assert _inside(installed["library_cache"], installed["user_resources"]), installed["library_cache"]
+    assert not _inside(installed["library_cache"], package), installed["library_cache"]
+
+
+def test_bake_leaves_the_original_action_unchanged(installed: dict) -> None:
+    before = installed["original_before"]
+    assert before["fcurves"] > 0 and before["keys"] > 0
+    assert installed["original_after_bake"] == before
+    assert installed["original_after_clear"] == before
+
+
+def test_clear_bake_restores_the_original_action(installed: dict) -> None:
+    original = installed["original_action"]
+    assert installed["clear_bake"] == ["FINISHED"]
+    assert installed["assigned_after_clear"] == original
+    assert installed["reacted_action"] not in installed["actions_after_clear"]
+    assert original in installed["actions_after_clear"]
+    assert installed["rotation_modes_restored"]
+    assert installed["summary_after_clear"] == ""
 
 
 def test_uninstall_removes_the_extension(installed: dict) -> None:

@@ -10,7 +10,7 @@ import numpy as np
 
 def fcurves(action: bpy.types.Action) -> list[bpy.types.FCurve]:
     """Every F-curve of an action."""
-    if hasattr(action, "layers") and action.layers:
+    if hasattr(action, "layers") and (action.layers or not hasattr(action, "fcurves")):
         return [
             fc for layer in action.layers for strip in layer.strips for bag in strip.channelbags for fc in bag.fcurves
         ]

@@ -89,7 +89,7 @@ def _bench_write(bpy, bvh_import, action_io) -> None:
 def _bench_bake(bpy, bvh_import, action_io) -> None:
     """A bake of 20 impacts (chest and pelvis, from around the character, 40-250 N·s) on the sample
     walk repeated to 3,000 frames, as the bake operator does it (bake.bake_armature)."""
-    from reactive_anim.blender import bake, impacts
+    from reactive_anim.blender import bake, impacts, resources
 
     from .react import push_impacts, repeated_walk
 
@@ -101,7 +101,7 @@ def _bench_bake(bpy, bvh_import, action_io) -> None:
     first = int(rig.animation_data.action.frame_range[0])
     for impact in push_impacts(long, [int(f) for f in range(60, 2900, 142)][:20]):
         impacts.add_impact(scene, rig, impact.bone, first + int(impact.frame), impact.direction, impact.strength)
-    library = bake.open_library()
+    library = resources.open_library()
     library.search_index()  # built once per library; a bake after the first reuses it
     start = time.perf_counter()
     result = bake.bake_armature(scene, rig, library=library)

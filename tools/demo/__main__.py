@@ -27,7 +27,7 @@ import bpy  # after BLENDER_USER_RESOURCES: Blender reads it when the module loa
 import numpy as np
 
 import reactive_anim
-from reactive_anim.blender import bake, impacts
+from reactive_anim.blender import bake, impacts, resources
 from reactive_anim.core.errors import ReactiveAnimError
 from reactive_anim.core.react import ReactionSettings
 
@@ -68,7 +68,7 @@ def run(out_dir: Path, classes: str, render_filmstrip: bool = True) -> int:
     fps = scene.render.fps / scene.render.fps_base
     print(f"scene: '{armature.name}' walks, frames {scene.frame_start}-{scene.frame_end} at {fps:g} fps", flush=True)
 
-    classifier, note = bake.open_classifier()
+    classifier, note = resources.open_classifier()
     force = classes == "expected" or (classes == "auto" and classifier is None)
     if force:
         print(f"classes: forced to each impact's expected class ({note})")

@@ -1,0 +1,279 @@
+"""Bake, Preview, Accept, Discard and Clear: the operators behind the panel's buttons.
+
+Bake and Preview compute the same way: invoked from the UI they read the scene on the main thread
+(bake.prepare_bake), run the core in a worker thread (worker.BackgroundBake) polled from a
+window-manager timer, pass every other event through so Blender stays live, show progress in the
+status bar and the panel, and stop on Esc leaving nothing behind. The result is written on the
+main thread in the operator's last step, which returns FINISHED: with the UNDO flag the bake is
+exactly one undo step (writing data from a timer callback and then undoing is a known crash).
+Run from a script, headless or in background mode, the same operators compute synchronously.
+"""
+
+# Blender declares operator properties as annotations holding calls (`armature_name: StringProperty(...)`),
+# which are not type expressions; pyright is told so for this file only.
+# pyright: reportInvalidTypeForm=false
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING, ClassVar
+
+import bpy
+from bpy.props import StringProperty
+
+from ..core.errors import Cancelled, ReactiveAnimError
+from ..core.react import Baked
+from . import bake, impacts, overlay, preview, settings, worker
+
+if TYPE_CHECKING:
+    from bpy._typing.rna_enums import OperatorReturnItems  # fake-bpy-module's name for the result set
+
+POLL_SECONDS = 0.1  # how often the modal operator looks at the worker (cheap: a queue read)
+
+
+def _computable(cls: type[bpy.types.Operator], context: bpy.types.Context) -> bool:
+    """Why Bake or Preview cannot run, if it cannot."""
+    running = worker.running()
+    if running is not None:
+        cls.poll_message_set(f"Reactions are being computed for '{running.job.armature}': wait, or press Esc")
+        return False
+    if context.scene is None or not settings.armatures_with_action():
+        cls.poll_message_set("Select an armature with an action (import a BVH first)")
+        return False
+    if not any(impacts.is_impact_marker(m) for m in context.scene.timeline_markers):
+        cls.poll_message_set("Add an impact first")
+        return False
+    return True
+
+
+class _Computes(bpy.types.Operator):
+    """What Bake and Preview share: the targets, and computing synchronously or in the background."""
+
+    armature_name: StringProperty(name="Armature", description="The armature to react (default: the panel's)")
+    library_path: StringProperty(
+        name="Library",
+        description="Reaction library folder or .toml (default: the scene's setting, else the bundled sample library)",
+        subtype="FILE_PATH",
+    )
+    model_path: StringProperty(
+        name="Classifier Model",
+        description="ONNX classifier model (default: the scene's setting, else the shipped one)",
+        subtype="FILE_PATH",
+    )
+
+    done_verb: ClassVar[str] = "Baked"
+    _background: worker.BackgroundBake | None = None
+    _timer: bpy.types.Timer | None = None
+
+    def write(self, job: bake.BakeJob, baked: Baked, seconds: float) -> bake.BakeResult:
+        raise NotImplementedError
+
+    def prepare(self, context: bpy.types.Context) -> bake.BakeJob:
+        armature = settings.target_armature(context, self.armature_name)
+        scene_settings = settings.scene_settings(context.scene)
+        return bake.prepare_bake(
+            context.scene,
+            armature,
+            self.library_path or scene_settings.library_path,
+            self.model_path or scene_settings.model_path,
+        )
+
+    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
+        """Synchronously: scripts, the command line, background mode."""
+        start = time.perf_counter()
+        try:
+            job = self.prepare(context)
+            result = self.write(job, job.run(), time.perf_counter() - start)
+        except (ReactiveAnimError, OSError) as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self._report_result(result)
+        return {"FINISHED"}
+
+    def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[OperatorReturnItems]:
+        """From the UI: in the background, polled from a timer; synchronously where there is no window."""
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        try:
+            job = self.prepare(context)
+            self._background = worker.BackgroundBake(job).start()
+        except (ReactiveAnimError, OSError, RuntimeError) as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(POLL_SECONDS, window=context.window)
+        wm.modal_handler_add(self)
+        _show_progress(context, self._background)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[OperatorReturnItems]:
+        background = self._background
+        assert background is not None
+        if event.type == "ESC" and event.value == "PRESS":
+            self.cancel(context)
+            self.report({"WARNING"}, "Reactions cancelled: nothing was changed")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        if not background.poll():
+            _show_progress(context, background)
+            return {"PASS_THROUGH"}
+        self._stop(context)
+        return self._write_finished(background)
+
+    def cancel(self, context: bpy.types.Context) -> None:
+        """Esc, or Blender ending the operator (a file loaded, the window closed): stop, write nothing."""
+        if self._background is not None:
+            self._background.cancel()
+        self._stop(context)
+
+    def _stop(self, context: bpy.types.Context) -> None:
+        if self._timer is not None:
+            context.window_manager.event_timer_remove(self._timer)
+            self._timer = None
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        overlay.tag_redraw()
+
+    def _write_finished(self, background: worker.BackgroundBake) -> set[OperatorReturnItems]:
+        """The operator's last step, on the main thread: write what the worker computed."""
+        try:
+            if background.error is not None:
+                raise background.error
+            assert background.baked is not None
+            result = self.write(background.job, background.baked, background.seconds)
+        except Cancelled:
+            self.report({"WARNING"}, "Reactions cancelled: nothing was changed")
+            return {"CANCELLED"}
+        except (ReactiveAnimError, OSError) as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self._report_result(result)
+        return {"FINISHED"}
+
+    def _report_result(self, result: bake.BakeResult) -> None:
+        for line in result.summary().splitlines():
+            self.report({"INFO"}, line)
+
+
+def _show_progress(context: bpy.types.Context, background: worker.BackgroundBake) -> None:
+    if context.workspace is not None:
+        context.workspace.status_text_set(background.progress.text(background.job.armature))
+    overlay.tag_redraw()
+
+
+class REACTIVE_ANIM_OT_bake(_Computes):
+    """Bake the impacts into a new action with the reactions; the original action is kept"""
+
+    bl_idname = "reactive_anim.bake"
+    bl_label = "Bake Reactions"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return _computable(cls, context)
+
+    def write(self, job: bake.BakeJob, baked: Baked, seconds: float) -> bake.BakeResult:
+        result = bake.commit_bake(job, baked, seconds)
+        preview.discard_preview(bake.armature_named(job.armature))  # a bake supersedes a pending preview
+        return result
+
+
+class REACTIVE_ANIM_OT_preview(_Computes):
+    """Compute the reactions and play them on a ghost of the character; the character is not changed"""
+
+    bl_idname = "reactive_anim.preview"
+    bl_label = "Preview Reactions"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return _computable(cls, context)
+
+    def write(self, job: bake.BakeJob, baked: Baked, seconds: float) -> bake.BakeResult:
+        return preview.show_preview(job, baked, seconds)
+
+
+def _some_armature(cls: type[bpy.types.Operator], test: Callable[[bpy.types.Object], bool], message: str) -> bool:
+    """Poll: true if some armature passes `test`, else explain."""
+    if not any(ob.type == "ARMATURE" and test(ob) for ob in bpy.data.objects):
+        cls.poll_message_set(message)
+        return False
+    return True
+
+
+class _OnArmature(bpy.types.Operator):
+    armature_name: StringProperty(name="Armature", description="The armature (default: the panel's)")
+
+
+class REACTIVE_ANIM_OT_accept_preview(_OnArmature):
+    """Keep the previewed reactions: they become the character's bake, without computing again"""
+
+    bl_idname = "reactive_anim.accept_preview"
+    bl_label = "Accept Preview"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return _some_armature(cls, preview.has_preview, "There is no preview to accept: click Preview first")
+
+    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
+        try:
+            armature = settings.target_armature(context, self.armature_name)
+            name = preview.accept_preview(armature)
+        except ReactiveAnimError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"'{armature.name}' plays '{name}', the accepted preview")
+        return {"FINISHED"}
+
+
+class REACTIVE_ANIM_OT_discard_preview(_OnArmature):
+    """Remove the preview's ghost and its action"""
+
+    bl_idname = "reactive_anim.discard_preview"
+    bl_label = "Discard Preview"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return _some_armature(cls, preview.has_preview, "There is no preview to discard")
+
+    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
+        try:
+            armature = settings.target_armature(context, self.armature_name)
+        except ReactiveAnimError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        if not preview.discard_preview(armature):
+            self.report({"ERROR"}, f"armature '{armature.name}' has no preview to discard")
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Discarded the preview of '{armature.name}'")
+        return {"FINISHED"}
+
+
+def _has_bake(ob: bpy.types.Object) -> bool:
+    return bake.bake_state(ob).reacted_action is not None
+
+
+class REACTIVE_ANIM_OT_clear_bake(_OnArmature):
+    """Go back to the original action and remove the baked reactions"""
+
+    bl_idname = "reactive_anim.clear_bake"
+    bl_label = "Clear Reactions"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return _some_armature(cls, _has_bake, "There are no baked reactions to clear")
+
+    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
+        try:
+            armature = settings.target_armature(context, self.armature_name)
+            original = bake.clear_bake(armature)
+        except ReactiveAnimError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"'{armature.name}' plays '{original}' again; the reacted action is removed")
+        return {"FINISHED"}

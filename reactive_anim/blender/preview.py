@@ -1,0 +1,132 @@
+"""Preview before committing: the reacted motion plays on a ghost of the character while the
+character keeps its own action; Accept makes the preview the bake (no recomputation), Discard
+removes every trace.
+
+The ghost is a second armature object sharing the character's armature data (so it has the same
+bones and rest pose, and costs no copy), drawn in front of everything as wire with tinted bones,
+not selectable. Its action `<action>.preview` is written on the ghost, so the character's bones,
+rotation modes and action are untouched until Accept. What the preview needs to become a bake is
+kept in the character's bake state (bake.py): the ghost, the action, and a JSON record of the
+result (summary, per-impact rows, the impacts it was made from, the bones it keys, the source).
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any, cast
+
+import bpy
+
+from ..core.errors import ReactiveAnimError, SkeletonError
+from ..core.react import Baked
+from . import action_io, bake
+
+PREVIEW_SUFFIX = ".preview"
+GHOST_BONE_COLOUR = "THEME09"  # a light tint in every default theme, unlike the character's own bones
+
+
+def has_preview(armature: bpy.types.Object) -> bool:
+    state = bake.bake_state(armature)
+    return state.preview_action is not None
+
+
+def show_preview(job: bake.BakeJob, baked: Baked, seconds: float) -> bake.BakeResult:
+    """Play the bake's result on a ghost of the job's armature (replacing an earlier preview)."""
+    armature, source = bake.job_target(job)
+    discard_preview(armature)
+    ghost = action = None
+    try:
+        ghost = _make_ghost(armature)
+        action = action_io.write_motion(ghost, baked.motion, source.name + PREVIEW_SUFFIX, job.first_frame)
+        bake.assign_action(ghost, action)
+    except BaseException:
+        if action is not None:
+            bpy.data.actions.remove(action)
+        if ghost is not None:
+            bpy.data.objects.remove(ghost)
+        raise
+    result = bake.job_result(job, baked, source.name + bake.REACTED_SUFFIX, seconds)
+    state = bake.bake_state(armature)
+    state.preview_object, state.preview_action = ghost, action
+    state.preview_result = json.dumps(
+        {
+            "summary": result.summary(),
+            "rows": result.rows(),
+            "fingerprint": job.fingerprint,
+            "source": source.name,
+            "bones": list(baked.motion.skeleton.names),
+        }
+    )
+    return result
+
+
+def _make_ghost(armature: bpy.types.Object) -> bpy.types.Object:
+    """A second object on the same armature data, where the character is, drawn in front as wire."""
+    ghost = bpy.data.objects.new(armature.name + PREVIEW_SUFFIX, armature.data)
+    ghost.parent = armature.parent
+    ghost.parent_type = armature.parent_type
+    ghost.parent_bone = armature.parent_bone
+    ghost.matrix_parent_inverse = armature.matrix_parent_inverse.copy()
+    ghost.matrix_basis = armature.matrix_basis.copy()
+    collections = armature.users_collection or (bpy.context.scene.collection,)
+    for collection in collections:
+        collection.objects.link(ghost)
+    bpy.context.view_layer.update()  # builds the ghost's pose
+    ghost.show_in_front = True
+    ghost.display_type = "WIRE"
+    ghost.hide_select = True
+    ghost.hide_render = True
+    ghost.animation_data_create()
+    for pose_bone in ghost.pose.bones:
+        cast(Any, pose_bone).color.palette = GHOST_BONE_COLOUR  # PoseBone.color: Blender 4.0+
+    return ghost
+
+
+def accept_preview(armature: bpy.types.Object) -> str:
+    """Make the preview the armature's bake, exactly as a bake would have left it; returns the
+    reacted action's name. Raises ReactiveAnimError if there is no preview or it is out of date."""
+    state = bake.bake_state(armature)
+    action = state.preview_action
+    if action is None:
+        raise ReactiveAnimError(f"armature '{armature.name}' has no preview to accept")
+    record = json.loads(state.preview_result)
+    source = bake.source_action(armature)
+    if source.name != record["source"]:
+        raise SkeletonError(
+            f"armature '{armature.name}' now plays '{source.name}', not '{record['source']}' as when the preview "
+            "was made; preview again"
+        )
+
+    def take_preview() -> bpy.types.Action:
+        for bone_name in record["bones"]:
+            armature.pose.bones[bone_name].rotation_mode = "QUATERNION"  # as write_motion leaves a bake
+        for slot in getattr(action, "slots", ()):  # 4.4+: the slot is named after the ghost
+            slot.name_display = armature.name
+        return action
+
+    state.preview_action = None  # from here on the action belongs to the bake
+    reacted = bake.assign_reacted(armature, source, take_preview)
+    bake.record_result(armature, record["summary"], record["rows"], record["fingerprint"])
+    _remove_ghost(state)
+    return reacted.name
+
+
+def discard_preview(armature: bpy.types.Object) -> bool:
+    """Remove the preview's ghost and action; False if there was none."""
+    state = bake.bake_state(armature)
+    if state.preview_action is None and state.preview_object is None:
+        return False
+    action = state.preview_action
+    state.preview_action = None
+    if action is not None:
+        bpy.data.actions.remove(action)
+    _remove_ghost(state)
+    return True
+
+
+def _remove_ghost(state: bake.REACTIVE_ANIM_PG_bake_state) -> None:
+    ghost = state.preview_object
+    state.preview_object = None
+    state.preview_result = ""
+    if ghost is not None:
+        bpy.data.objects.remove(ghost)

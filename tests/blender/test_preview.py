@@ -1,0 +1,95 @@
+"""Preview before committing (blender/preview.py): the reacted motion on a ghost sharing the
+character's armature data; Discard leaves no trace, Accept equals a direct bake."""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+import pytest
+
+from reactive_anim.blender import action_io, bake, preview
+from tests.support.actions import keyframes
+from tests.support.bake_scene import blend_snapshot, walk_with_impacts
+
+
+def _without_timing(summary: str) -> list[str]:
+    """The summary without the measured times, which differ from run to run."""
+    head, *lines = summary.splitlines()
+    return [head.split(" in ")[0], *(line.rsplit(",", 1)[0] for line in lines)]
+
+
+def test_preview_plays_on_a_ghost_and_leaves_the_character_alone(empty_scene):
+    rig = walk_with_impacts(empty_scene)
+    before = blend_snapshot()
+    modes = [pb.rotation_mode for pb in rig.pose.bones]
+
+    assert bpy.ops.reactive_anim.preview(armature_name="walk") == {"FINISHED"}
+
+    ghost = bpy.data.objects["walk.preview"]
+    assert ghost.data == rig.data and ghost.show_in_front and ghost.display_type == "WIRE" and ghost.hide_select
+    assert ghost.users_collection == rig.users_collection
+    assert ghost.animation_data.action.name == "walk.preview"
+    assert rig.animation_data.action.name == "walk"
+    assert [pb.rotation_mode for pb in rig.pose.bones] == modes
+    assert blend_snapshot()["actions"]["walk"] == before["actions"]["walk"]
+    # the ghost moves as the reaction does: same before the first impact, apart after it
+    walk = action_io.read_motion(rig)
+    ghost_motion = action_io.read_motion(ghost)
+    assert np.abs(ghost_motion.global_positions()[:40] - walk.global_positions()[:40]).max() < 1e-5
+    assert np.abs(ghost_motion.global_positions()[60:100] - walk.global_positions()[60:100]).max() > 0.05
+    with pytest.raises(RuntimeError, match=r"clear_bake.poll\(\) There are no baked reactions"):
+        bpy.ops.reactive_anim.clear_bake(armature_name="walk")
+
+
+def test_preview_then_discard_leaves_the_file_unchanged(empty_scene):
+    walk_with_impacts(empty_scene)
+    before = blend_snapshot()
+    objects, actions = set(bpy.data.objects.keys()), set(bpy.data.actions.keys())
+
+    bpy.ops.reactive_anim.preview(armature_name="walk")
+    assert bpy.ops.reactive_anim.discard_preview(armature_name="walk") == {"FINISHED"}
+
+    assert set(bpy.data.objects.keys()) == objects and set(bpy.data.actions.keys()) == actions
+    assert blend_snapshot() == before
+    with pytest.raises(RuntimeError, match=r"discard_preview.poll\(\) There is no preview to discard"):
+        bpy.ops.reactive_anim.discard_preview(armature_name="walk")
+
+
+def test_preview_then_accept_equals_a_direct_bake(empty_scene):
+    rig = walk_with_impacts(empty_scene)
+    bpy.ops.reactive_anim.bake(armature_name="walk")
+    direct = blend_snapshot()
+    direct_keys = keyframes(rig.animation_data.action)
+    direct_state = bake.bake_state(rig)
+    direct_summary, direct_rows = direct_state.summary, direct_state.rows
+    bpy.ops.reactive_anim.clear_bake(armature_name="walk")
+
+    bpy.ops.reactive_anim.preview(armature_name="walk")
+    assert bpy.ops.reactive_anim.accept_preview(armature_name="walk") == {"FINISHED"}
+
+    assert "walk.preview" not in bpy.data.objects and "walk.preview" not in bpy.data.actions
+    assert rig.animation_data.action.name == "walk.reacted"
+    assert keyframes(rig.animation_data.action) == direct_keys
+    state = bake.bake_state(rig)
+    assert state.rows == direct_rows
+    assert _without_timing(state.summary) == _without_timing(direct_summary)
+    accepted = blend_snapshot()
+    for snapshot in (accepted, direct):  # the measured times differ
+        name, slot, modes, _bake_fields, collections = snapshot["objects"]["walk"]
+        snapshot["objects"]["walk"] = (name, slot, modes, collections)
+    assert accepted == direct
+    # and it clears like a bake
+    assert bpy.ops.reactive_anim.clear_bake(armature_name="walk") == {"FINISHED"}
+    assert rig.animation_data.action.name == "walk"
+
+
+def test_a_bake_replaces_a_pending_preview_and_a_second_preview_replaces_the_first(empty_scene):
+    walk_with_impacts(empty_scene)
+    bpy.ops.reactive_anim.preview(armature_name="walk")
+    bpy.ops.reactive_anim.preview(armature_name="walk")
+    assert [ob.name for ob in bpy.data.objects] == ["walk", "walk.preview"]
+    assert sorted(bpy.data.actions.keys()) == ["walk", "walk.preview"]
+    bpy.ops.reactive_anim.bake(armature_name="walk")
+    assert [ob.name for ob in bpy.data.objects] == ["walk"]
+    assert sorted(bpy.data.actions.keys()) == ["walk", "walk.reacted"]
+    assert not preview.has_preview(bpy.data.objects["walk"])
