@@ -93,7 +93,7 @@ class _Computes(bpy.types.Operator):
 
     def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[OperatorReturnItems]:
         """From the UI: in the background, polled from a timer; synchronously where there is no window."""
-        if bpy.app.background or context.window is None:
+        if not runs_modal(context):
             return self.execute(context)
         try:
             job = self.prepare(context)
@@ -155,6 +155,11 @@ class _Computes(bpy.types.Operator):
     def _report_result(self, result: bake.BakeResult) -> None:
         for line in result.summary().splitlines():
             self.report({"INFO"}, line)
+
+
+def runs_modal(context: bpy.types.Context) -> bool:
+    """A window with an event loop: background mode has none (its timers never fire)."""
+    return not bpy.app.background and context.window is not None
 
 
 def _show_progress(context: bpy.types.Context, background: worker.BackgroundBake) -> None:

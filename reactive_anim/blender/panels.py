@@ -226,27 +226,29 @@ def _draw_rows(layout: bpy.types.UILayout, title: str, rows_json: str) -> None:
         col.label(text=f"    {row['clip']}{then}, cost {row['cost']:.1f}{over}; {row['chosen_by']}")
 
 
+# Every operator, in the order the Reactions menu lists them.
+MENU_OPERATORS = (
+    operators.REACTIVE_ANIM_OT_import_bvh,
+    impact_ops.REACTIVE_ANIM_OT_add_impact,
+    impact_ops.REACTIVE_ANIM_OT_aim_impact,
+    impact_ops.REACTIVE_ANIM_OT_jump_to_impact,
+    impact_ops.REACTIVE_ANIM_OT_remove_impact,
+    bake_ops.REACTIVE_ANIM_OT_preview,
+    bake_ops.REACTIVE_ANIM_OT_accept_preview,
+    bake_ops.REACTIVE_ANIM_OT_discard_preview,
+    bake_ops.REACTIVE_ANIM_OT_bake,
+    bake_ops.REACTIVE_ANIM_OT_clear_bake,
+)
+
+
 class REACTIVE_ANIM_MT_reactions(bpy.types.Menu):
     """Every Reactions operator, in the Object and Pose menus (and so in F3 search)."""
 
     bl_idname = "REACTIVE_ANIM_MT_reactions"
     bl_label = "Reactions"
 
-    OPERATORS = (
-        operators.REACTIVE_ANIM_OT_import_bvh,
-        impact_ops.REACTIVE_ANIM_OT_add_impact,
-        impact_ops.REACTIVE_ANIM_OT_aim_impact,
-        impact_ops.REACTIVE_ANIM_OT_jump_to_impact,
-        impact_ops.REACTIVE_ANIM_OT_remove_impact,
-        bake_ops.REACTIVE_ANIM_OT_preview,
-        bake_ops.REACTIVE_ANIM_OT_accept_preview,
-        bake_ops.REACTIVE_ANIM_OT_discard_preview,
-        bake_ops.REACTIVE_ANIM_OT_bake,
-        bake_ops.REACTIVE_ANIM_OT_clear_bake,
-    )
-
     def draw(self, context: bpy.types.Context) -> None:
-        for operator in self.OPERATORS:
+        for operator in MENU_OPERATORS:
             self.layout.operator(operator.bl_idname)
 
 

@@ -182,6 +182,6 @@ def test_every_operator_has_a_tooltip_a_poll_and_a_menu_entry():
     assert {cls.bl_idname.split(".")[1] for cls in operators} == {n for n, _ in POLL_MESSAGES} | {"import_bvh"}
     for cls in operators:
         assert cls.__doc__ and len(cls.__doc__.split()) >= 5, cls.__name__
-    assert set(panels.REACTIVE_ANIM_MT_reactions.OPERATORS) == set(operators)
+    assert set(panels.MENU_OPERATORS) == set(operators)
     for menu, entry in registry.MENUS[1:]:
         assert entry == panels.draw_menu_entry and menu in (bpy.types.VIEW3D_MT_object, bpy.types.VIEW3D_MT_pose)
