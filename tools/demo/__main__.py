@@ -15,10 +15,14 @@ configuration and the compiled reaction library is cached between runs.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import re
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 
 os.environ.setdefault("BLENDER_USER_RESOURCES", str(Path(__file__).resolve().parents[2] / "out" / "demo_blender_user"))
@@ -94,8 +98,35 @@ def run(out_dir: Path, classes: str, render_filmstrip: bool = True) -> int:
         engine = render.render_filmstrip(scene, rows, png)
         print(f"rendered {png}: {len(rows)} impacts x {len(rows[0])} frames with {engine} "
               f"in {time.perf_counter() - started:.1f} s")  # fmt: skip
+        compared = out_dir / "demo_before_after.png"
+        render.write_png(render.compose(before_and_after(scene, armature, rows[-1])), compared)
+        print(f"rendered {compared}: the last impact's frames without and with the bake")
     print(f"demo: {time.perf_counter() - clock:.1f} s")
     return 0
+
+
+def before_and_after(scene: bpy.types.Scene, armature: bpy.types.Object, row: list[render.Tile]) -> list[list]:
+    """The same frames twice: the character playing its original action (as before the bake), then
+    the reacted one."""
+    before = [replace(tile, caption=f"before the bake, {tile.caption.split()[-1]}") for tile in row]
+    after = [replace(tile, caption=f"after: {tile.caption}") for tile in row]
+    with playing_original(armature):
+        pictures = render.render_rows(scene, [before])
+    return pictures + render.render_rows(scene, [after])
+
+
+@contextmanager
+def playing_original(armature: bpy.types.Object) -> Iterator[None]:
+    """The baked character plays its original action meanwhile (with the rotation modes it keys)."""
+    state = bake.bake_state(armature)
+    modes = {pb.name: pb.rotation_mode for pb in armature.pose.bones}
+    bake.restore_rotation_modes(armature, json.loads(state.rotation_modes))
+    bake.assign_action(armature, state.original_action)
+    try:
+        yield
+    finally:
+        bake.restore_rotation_modes(armature, modes)
+        bake.assign_action(armature, state.reacted_action)
 
 
 def bake_with_operator(armature: bpy.types.Object) -> None:

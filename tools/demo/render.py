@@ -92,7 +92,13 @@ def _blank(pixels: np.ndarray) -> bool:
 
 
 def render_filmstrip(scene: bpy.types.Scene, rows: Sequence[Sequence[Tile]], out_path: Path) -> str:
-    """Render every tile and write the grid (a row per impact) to `out_path`; returns the engine used.
+    """Render every tile and write the grid (a row per impact) to `out_path`; returns the engine used."""
+    write_png(compose(render_rows(scene, rows)), out_path)
+    return scene.render.engine
+
+
+def render_rows(scene: bpy.types.Scene, rows: Sequence[Sequence[Tile]]) -> list[list[np.ndarray]]:
+    """Every tile's pixels, row by row; the camera is put back afterwards.
 
     Workbench first; if its first tile fails or comes out blank, everything is rendered with Cycles.
     """
@@ -109,8 +115,7 @@ def render_filmstrip(scene: bpy.types.Scene, rows: Sequence[Sequence[Tile]], out
                 pictures[-1].append(pixels)
     if camera is not None and saved is not None:
         camera.location, camera.rotation_euler = saved
-    write_png(compose(pictures), out_path)
-    return scene.render.engine
+    return pictures
 
 
 def _first_tile(scene: bpy.types.Scene, tile: Tile, path: Path) -> np.ndarray:
