@@ -41,7 +41,7 @@ from ..core.impact import Impact
 from ..core.library import Library
 from ..core.react import Baked, Reaction, ReactionClassifier, ReactionSettings, bake_reactions
 from ..core.skeleton import Motion
-from . import action_io, impacts, resources
+from . import action_io, impacts, resources, settings
 
 REACTED_SUFFIX = ".reacted"
 # The bake state a failed write puts back (the summary is only written after a bake succeeds).
@@ -101,14 +101,6 @@ def impacts_fingerprint(scene: bpy.types.Scene, armature_name: str) -> str:
         p = impacts.impact_data(marker)
         parts.append(f"{p.uid} {marker.frame} {p.bone} {tuple(p.direction)} {p.strength} {p.reaction}")
     return hashlib.sha1("\n".join(parts).encode()).hexdigest()[:16]
-
-
-def armature_named(name: str) -> bpy.types.Object:
-    """The armature object called `name`; SkeletonError names what is missing."""
-    armature = bpy.data.objects.get(name) if name else None
-    if armature is None or armature.type != "ARMATURE":
-        raise SkeletonError(f"there is no armature called '{name}'" if name else "name the armature (armature_name)")
-    return armature
 
 
 # ---------------------------------------------------------------------------------------------
@@ -288,7 +280,7 @@ def job_result(job: BakeJob, baked: Baked, reacted_action: str, seconds: float) 
 def job_target(job: BakeJob) -> tuple[bpy.types.Object, bpy.types.Action]:
     """The job's armature and source action, checked unchanged since prepare_bake (the animator may
     have worked on while the bake ran in the background)."""
-    armature = armature_named(job.armature)
+    armature = settings.armature_named(job.armature)
     source = source_action(armature)
     if source.name != job.source_action:
         raise SkeletonError(
@@ -342,10 +334,10 @@ def bake_armature(
 
 
 def assign_reacted(
-    armature: bpy.types.Object, source: bpy.types.Action, make: Callable[[], bpy.types.Action]
+    armature: bpy.types.Object, source: bpy.types.Action, make: Callable[[], bpy.types.Action], owned: bool = True
 ) -> bpy.types.Action:
-    """Assign the reacted action `make()` returns (a new action this call owns); on any failure
-    remove it and restore what was there. Replaces the previous bake's action and takes its name."""
+    """Assign the reacted action `make()` returns; on any failure restore what was there (and remove
+    the action if `owned`: made for this call). Replaces the previous bake's action, takes its name."""
     adt = armature.animation_data
     assert adt is not None  # source_action found an action on it
     state = bake_state(armature)
@@ -365,15 +357,16 @@ def assign_reacted(
         state.original_action = source
         state.reacted_action = created
     except BaseException:
-        if created is not None:
+        if created is not None and owned:
             bpy.data.actions.remove(created)
         _assign(adt, saved_action, saved_slot)
         restore_rotation_modes(armature, modes)
         for key, value in saved_state.items():
             setattr(state, key, value)
         raise
-    # Past the point of failure: retire the previous bake's action and take its name.
-    if previous is not None:
+    # Past the point of failure: retire the previous bake's action (unless a duplicate of the
+    # character plays it) and take its name.
+    if previous is not None and previous.users == 0:
         bpy.data.actions.remove(previous)
     created.name = name
     source.use_fake_user = True
@@ -424,7 +417,8 @@ def clear_bake(armature: bpy.types.Object) -> str:
     if adt.action == reacted:
         _assign(adt, original, state.original_slot or None)
     state.reacted_action = None
-    bpy.data.actions.remove(reacted)
+    if reacted.users == 0:  # a duplicate of the character may still play it
+        bpy.data.actions.remove(reacted)
     if state.rotation_modes:
         restore_rotation_modes(armature, json.loads(state.rotation_modes))
     state.original_action = None

@@ -17,34 +17,29 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, Any, cast
 
 import bpy
 from bpy.props import StringProperty
 
-from ..core.errors import Cancelled, ReactiveAnimError
+from ..core.errors import ReactiveAnimError
 from ..core.react import Baked
-from . import bake, impacts, overlay, preview, settings, worker
+from . import bake, impact_ops, overlay, preview, settings, worker
 
 if TYPE_CHECKING:
     from bpy._typing.rna_enums import OperatorReturnItems  # fake-bpy-module's name for the result set
 
-POLL_SECONDS = 0.1  # how often the modal operator looks at the worker (cheap: a queue read)
-
 
 def _computable(cls: type[bpy.types.Operator], context: bpy.types.Context) -> bool:
     """Why Bake or Preview cannot run, if it cannot."""
-    running = worker.running()
-    if running is not None:
-        cls.poll_message_set(f"Reactions are being computed for '{running.job.armature}': wait, or press Esc")
+    busy = worker.running()
+    if busy is not None:
+        cls.poll_message_set(f"Reactions are being computed for '{busy.job.armature}': wait, or press Esc")
         return False
     if context.scene is None or not settings.armatures_with_action():
         cls.poll_message_set("Select an armature with an action (import a BVH first)")
         return False
-    if not any(impacts.is_impact_marker(m) for m in context.scene.timeline_markers):
-        cls.poll_message_set("Add an impact first")
-        return False
-    return True
+    return impact_ops.has_impacts(cls, context)
 
 
 class _Computes(bpy.types.Operator):
@@ -62,9 +57,7 @@ class _Computes(bpy.types.Operator):
         subtype="FILE_PATH",
     )
 
-    done_verb: ClassVar[str] = "Baked"
-    _background: worker.BackgroundBake | None = None
-    _timer: bpy.types.Timer | None = None
+    _run: worker.ModalRun | None = None
 
     def write(self, job: bake.BakeJob, baked: Baked, seconds: float) -> bake.BakeResult:
         raise NotImplementedError
@@ -88,84 +81,48 @@ class _Computes(bpy.types.Operator):
         except (ReactiveAnimError, OSError) as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        self._report_result(result)
+        for line in result.summary().splitlines():
+            self.report({"INFO"}, line)
         return {"FINISHED"}
 
     def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[OperatorReturnItems]:
-        """From the UI: in the background, polled from a timer; synchronously where there is no window."""
-        if not runs_modal(context):
+        """From the UI: computed in a worker thread, polled from a timer; synchronously where there
+        is no event loop (background mode)."""
+        if bpy.app.background or context.window is None:
             return self.execute(context)
+        workspace = context.workspace
         try:
-            job = self.prepare(context)
-            self._background = worker.BackgroundBake(job).start()
+            background = worker.BackgroundBake(self.prepare(context))
+            self._run = worker.ModalRun(
+                background, self.write, context.window_manager, context.window,
+                status=lambda text: _status(workspace, text), redraw=overlay.tag_redraw,
+            )  # fmt: skip
+            self._run.start()
         except (ReactiveAnimError, OSError, RuntimeError) as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        wm = context.window_manager
-        self._timer = wm.event_timer_add(POLL_SECONDS, window=context.window)
-        wm.modal_handler_add(self)
-        _show_progress(context, self._background)
+        context.window_manager.modal_handler_add(self)
         return {"RUNNING_MODAL"}
 
     def modal(self, context: bpy.types.Context, event: bpy.types.Event) -> set[OperatorReturnItems]:
-        background = self._background
-        assert background is not None
-        if event.type == "ESC" and event.value == "PRESS":
-            self.cancel(context)
-            self.report({"WARNING"}, "Reactions cancelled: nothing was changed")
-            return {"CANCELLED"}
-        if event.type != "TIMER":
-            return {"PASS_THROUGH"}
-        if not background.poll():
-            _show_progress(context, background)
-            return {"PASS_THROUGH"}
-        self._stop(context)
-        return self._write_finished(background)
+        assert self._run is not None
+        outcome = self._run.handle(event.type, event.value)
+        for level, message in outcome.reports:
+            self.report({cast(Any, level)}, message)
+        return {cast(Any, outcome.result)}
 
     def cancel(self, context: bpy.types.Context) -> None:
-        """Esc, or Blender ending the operator (a file loaded, the window closed): stop, write nothing."""
-        if self._background is not None:
-            self._background.cancel()
-        self._stop(context)
-
-    def _stop(self, context: bpy.types.Context) -> None:
-        if self._timer is not None:
-            context.window_manager.event_timer_remove(self._timer)
-            self._timer = None
-        if context.workspace is not None:
-            context.workspace.status_text_set(None)
-        overlay.tag_redraw()
-
-    def _write_finished(self, background: worker.BackgroundBake) -> set[OperatorReturnItems]:
-        """The operator's last step, on the main thread: write what the worker computed."""
-        try:
-            if background.error is not None:
-                raise background.error
-            assert background.baked is not None
-            result = self.write(background.job, background.baked, background.seconds)
-        except Cancelled:
-            self.report({"WARNING"}, "Reactions cancelled: nothing was changed")
-            return {"CANCELLED"}
-        except (ReactiveAnimError, OSError) as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self._report_result(result)
-        return {"FINISHED"}
-
-    def _report_result(self, result: bake.BakeResult) -> None:
-        for line in result.summary().splitlines():
-            self.report({"INFO"}, line)
+        """Blender ends the operator (a file loaded, the window closed): stop, write nothing."""
+        if self._run is not None:
+            self._run.cancel()
 
 
-def runs_modal(context: bpy.types.Context) -> bool:
-    """A window with an event loop: background mode has none (its timers never fire)."""
-    return not bpy.app.background and context.window is not None
-
-
-def _show_progress(context: bpy.types.Context, background: worker.BackgroundBake) -> None:
-    if context.workspace is not None:
-        context.workspace.status_text_set(background.progress.text(background.job.armature))
-    overlay.tag_redraw()
+def _status(workspace: bpy.types.WorkSpace | None, text: str | None) -> None:
+    """Status bar text on the workspace the bake started in (Blender sets it on the context's,
+    which is another one if the animator switched tabs meanwhile)."""
+    if workspace is not None:
+        with bpy.context.temp_override(workspace=workspace):
+            workspace.status_text_set(text)
 
 
 class REACTIVE_ANIM_OT_bake(_Computes):
@@ -173,7 +130,7 @@ class REACTIVE_ANIM_OT_bake(_Computes):
 
     bl_idname = "reactive_anim.bake"
     bl_label = "Bake Reactions"
-    bl_options = {"REGISTER", "UNDO"}
+    bl_options = {"UNDO"}  # no REGISTER: a redo from Adjust Last Operation would bake again, blocking
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
@@ -181,7 +138,7 @@ class REACTIVE_ANIM_OT_bake(_Computes):
 
     def write(self, job: bake.BakeJob, baked: Baked, seconds: float) -> bake.BakeResult:
         result = bake.commit_bake(job, baked, seconds)
-        preview.discard_preview(bake.armature_named(job.armature))  # a bake supersedes a pending preview
+        preview.discard_preview(settings.armature_named(job.armature))  # a bake supersedes a pending preview
         return result
 
 
@@ -190,7 +147,7 @@ class REACTIVE_ANIM_OT_preview(_Computes):
 
     bl_idname = "reactive_anim.preview"
     bl_label = "Preview Reactions"
-    bl_options = {"REGISTER", "UNDO"}
+    bl_options = {"UNDO"}  # no REGISTER: a redo from Adjust Last Operation would bake again, blocking
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:

@@ -44,9 +44,21 @@ def view_direction(view_rotation: tuple[float, ...], flatten: bool) -> tuple[flo
     return (float(into[0]), float(into[1]), float(into[2]))
 
 
-def _context_view_rotation(context: bpy.types.Context) -> tuple[float, ...] | None:
+def view_rotation_of(context: bpy.types.Context) -> tuple[float, ...] | None:
+    """The rotation of the 3D view an operator was called from: its own region, else the view whose
+    sidebar or header holds the button, else the window's first 3D view; None without any."""
     region = context.region_data
-    return _rotation(region) if isinstance(region, bpy.types.RegionView3D) else None
+    if isinstance(region, bpy.types.RegionView3D):
+        return _rotation(region)
+    space = context.space_data
+    if isinstance(space, bpy.types.SpaceView3D) and space.region_3d is not None:
+        return _rotation(space.region_3d)
+    screen = context.screen
+    for area in screen.areas if screen else ():
+        view = area.spaces.active
+        if isinstance(view, bpy.types.SpaceView3D) and view.region_3d is not None:
+            return _rotation(view.region_3d)
+    return None
 
 
 def _rotation(region: bpy.types.RegionView3D) -> tuple[float, ...]:
@@ -78,14 +90,14 @@ def _marker(context: bpy.types.Context, uid: str) -> bpy.types.TimelineMarker:
         if marker is None:
             raise ImpactError(f"scene '{scene.name}' has no impact marker with uid '{uid}'")
         return marker
-    markers = scene.timeline_markers
-    index = settings.scene_settings(scene).active_impact
-    if 0 <= index < len(markers) and impacts.is_impact_marker(markers[index]):
-        return markers[index]
+    marker = settings.active_impact_marker(scene)
+    if marker is not None:
+        return marker
     raise ImpactError("pick an impact in the Reactions panel's list, or name it (uid)")
 
 
-def _has_impacts(cls: type[bpy.types.Operator], context: bpy.types.Context) -> bool:
+def has_impacts(cls: type[bpy.types.Operator], context: bpy.types.Context) -> bool:
+    """Poll: the scene has impact markers, else "Add an impact first"."""
     if context.scene is None or not any(impacts.is_impact_marker(m) for m in context.scene.timeline_markers):
         cls.poll_message_set("Add an impact first")
         return False
@@ -133,7 +145,7 @@ class REACTIVE_ANIM_OT_add_impact(bpy.types.Operator):
 
     def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[OperatorReturnItems]:
         """From the viewport: the push goes into the screen, unless a direction was given."""
-        rotation = _context_view_rotation(context)
+        rotation = view_rotation_of(context)
         if rotation is not None and not self.properties.is_property_set("direction"):
             self.view_rotation = rotation
             self.direction_source = "VIEW"
@@ -198,10 +210,10 @@ class REACTIVE_ANIM_OT_aim_impact(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
-        return _has_impacts(cls, context)
+        return has_impacts(cls, context)
 
     def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[OperatorReturnItems]:
-        rotation = _context_view_rotation(context) or _any_view_rotation(context)
+        rotation = view_rotation_of(context)
         if rotation is None:
             self.report({"ERROR"}, "there is no 3D view to aim from")
             return {"CANCELLED"}
@@ -218,16 +230,6 @@ class REACTIVE_ANIM_OT_aim_impact(bpy.types.Operator):
         return {"FINISHED"}
 
 
-def _any_view_rotation(context: bpy.types.Context) -> tuple[float, ...] | None:
-    """The first 3D view's rotation in the window (for the panel's button, which lives in a sidebar)."""
-    screen = context.screen
-    for area in screen.areas if screen else ():
-        space = area.spaces.active
-        if isinstance(space, bpy.types.SpaceView3D) and space.region_3d is not None:
-            return _rotation(space.region_3d)
-    return None
-
-
 class REACTIVE_ANIM_OT_jump_to_impact(bpy.types.Operator):
     """Go to an impact's frame and make it the active one"""
 
@@ -239,7 +241,7 @@ class REACTIVE_ANIM_OT_jump_to_impact(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
-        return _has_impacts(cls, context)
+        return has_impacts(cls, context)
 
     def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
         try:
@@ -263,7 +265,7 @@ class REACTIVE_ANIM_OT_remove_impact(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
-        return _has_impacts(cls, context)
+        return has_impacts(cls, context)
 
     def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
         try:

@@ -6,8 +6,8 @@ timeline) copies the impact's properties, uid included, and two impacts must nev
 (the copy gets a new one); and the panel and the viewport arrows must redraw when markers move.
 Blender sends no msgbus or depsgraph notification when a marker is dragged, so a `bpy.app.timers`
 poll looks about 4 times a second (a loop over the markers: microseconds), and persistent
-load_post / undo_post / redo_post handlers look right after a file load, undo or redo. A file
-load also stops a running bake, whose result would have nowhere to go.
+load_post / undo_post / redo_post handlers look right after a file load, undo or redo. Before a
+file load (load_pre) a running bake stops, its result would have nowhere to go.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from . import impacts, overlay, worker
 POLL_SECONDS = 0.25
 
 _seen: dict[str, tuple[tuple[str, int], ...]] = {}  # scene name -> (uid, frame) of its impact markers
+_warned = False
 
 
 def sync_scene(scene: bpy.types.Scene) -> bool:
@@ -65,8 +66,15 @@ def sync_all() -> bool:
 
 
 def _poll() -> float:
-    """The timer: look again in POLL_SECONDS."""
-    sync_all()
+    """The timer: look again in POLL_SECONDS. An error must not end the timer (Blender drops a
+    timer that raises): it is printed once."""
+    global _warned
+    try:
+        sync_all()
+    except Exception as exc:
+        if not _warned:
+            _warned = True
+            print(f"reactive_anim: the impact marker watch failed and goes on: {exc!r}")
     return POLL_SECONDS
 
 
@@ -76,13 +84,18 @@ def _after_undo(*_args: Any) -> None:
 
 
 @persistent
+def _before_load(*_args: Any) -> None:
+    worker.cancel_running()  # its result would have nowhere to go
+
+
+@persistent
 def _after_load(*_args: Any) -> None:
-    worker.cancel_running()
     _seen.clear()
     sync_all()
 
 
 _HANDLERS = (
+    (bpy.app.handlers.load_pre, _before_load),
     (bpy.app.handlers.load_post, _after_load),
     (bpy.app.handlers.undo_post, _after_undo),
     (bpy.app.handlers.redo_post, _after_undo),

@@ -196,6 +196,7 @@ def draw_impact_arrows(arrows: list[Arrow]) -> None:
     fill_shader = gpu.shader.from_builtin("UNIFORM_COLOR")
     viewport_size = tuple(float(v) for v in gpu.state.viewport_get()[2:])
     gpu.state.blend_set("ALPHA")
+    gpu.state.depth_test_set("NONE")
     try:
         # The active arrow last, on top of the others.
         for arrow in sorted(arrows, key=lambda a: a.active):
@@ -220,11 +221,8 @@ _warned = False
 
 def active_impact_uid(scene: bpy.types.Scene) -> str | None:
     """The uid of the impact selected in the Reactions panel's list (a timeline marker index), if any."""
-    markers = scene.timeline_markers
-    index = settings.scene_settings(scene).active_impact
-    if 0 <= index < len(markers) and is_impact_marker(markers[index]):
-        return impact_data(markers[index]).uid
-    return None
+    marker = settings.active_impact_marker(scene)
+    return impact_data(marker).uid if marker is not None else None
 
 
 def draw_callback() -> None:

@@ -139,7 +139,7 @@ class REACTIVE_ANIM_PT_impacts(bpy.types.Panel):
         side.separator()
         side.operator(impact_ops.REACTIVE_ANIM_OT_jump_to_impact.bl_idname, text="", icon="TIME")
         side.operator(impact_ops.REACTIVE_ANIM_OT_aim_impact.bl_idname, text="", icon="VIEW_CAMERA")
-        marker = _active_marker(scene, character)
+        marker = settings.active_impact_marker(scene, character.name)
         if marker is None:
             layout.label(text="Pose mode: select the bone that is hit, then +", icon="INFO")
             return
@@ -154,16 +154,6 @@ class REACTIVE_ANIM_PT_impacts(bpy.types.Panel):
         button(col, impact_ops.REACTIVE_ANIM_OT_aim_impact, icon="VIEW_CAMERA", targets={"uid": props.uid})
         col.prop(props, "strength")
         col.prop(props, "reaction")
-
-
-def _active_marker(scene: bpy.types.Scene, character: bpy.types.Object) -> bpy.types.TimelineMarker | None:
-    index = settings.scene_settings(scene).active_impact
-    markers = scene.timeline_markers
-    if 0 <= index < len(markers):
-        marker = markers[index]
-        if impacts.is_impact_marker(marker) and impacts.impact_data(marker).armature == character.name:
-            return marker
-    return None
 
 
 class REACTIVE_ANIM_PT_bake(bpy.types.Panel):

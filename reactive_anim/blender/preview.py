@@ -19,7 +19,7 @@ import bpy
 
 from ..core.errors import ReactiveAnimError, SkeletonError
 from ..core.react import Baked
-from . import action_io, bake
+from . import action_io, bake, settings
 
 PREVIEW_SUFFIX = ".preview"
 GHOST_BONE_COLOUR = "THEME09"  # a light tint in every default theme, unlike the character's own bones
@@ -27,7 +27,7 @@ GHOST_BONE_COLOUR = "THEME09"  # a light tint in every default theme, unlike the
 
 def has_preview(armature: bpy.types.Object) -> bool:
     state = bake.bake_state(armature)
-    return state.preview_action is not None
+    return state.preview_action is not None or state.preview_object is not None
 
 
 def show_preview(job: bake.BakeJob, baked: Baked, seconds: float) -> bake.BakeResult:
@@ -63,6 +63,7 @@ def show_preview(job: bake.BakeJob, baked: Baked, seconds: float) -> bake.BakeRe
 def _make_ghost(armature: bpy.types.Object) -> bpy.types.Object:
     """A second object on the same armature data, where the character is, drawn in front as wire."""
     ghost = bpy.data.objects.new(armature.name + PREVIEW_SUFFIX, armature.data)
+    ghost[settings.GHOST_TAG] = armature.name  # never taken for a character (settings.is_character)
     ghost.parent = armature.parent
     ghost.parent_type = armature.parent_type
     ghost.parent_bone = armature.parent_bone
@@ -84,7 +85,8 @@ def _make_ghost(armature: bpy.types.Object) -> bpy.types.Object:
 
 def accept_preview(armature: bpy.types.Object) -> str:
     """Make the preview the armature's bake, exactly as a bake would have left it; returns the
-    reacted action's name. Raises ReactiveAnimError if there is no preview or it is out of date."""
+    reacted action's name. Raises ReactiveAnimError, changing nothing, if there is no preview or
+    the character changed since (another action, bones gone)."""
     state = bake.bake_state(armature)
     action = state.preview_action
     if action is None:
@@ -96,6 +98,9 @@ def accept_preview(armature: bpy.types.Object) -> str:
             f"armature '{armature.name}' now plays '{source.name}', not '{record['source']}' as when the preview "
             "was made; preview again"
         )
+    missing = [name for name in record["bones"] if name not in armature.pose.bones]
+    if missing:
+        raise SkeletonError(f"armature '{armature.name}' no longer has the bones {', '.join(missing)}; preview again")
 
     def take_preview() -> bpy.types.Action:
         for bone_name in record["bones"]:
@@ -104,29 +109,31 @@ def accept_preview(armature: bpy.types.Object) -> str:
             slot.name_display = armature.name
         return action
 
-    state.preview_action = None  # from here on the action belongs to the bake
-    reacted = bake.assign_reacted(armature, source, take_preview)
+    reacted = bake.assign_reacted(armature, source, take_preview, owned=False)
+    state.preview_action = None  # the action belongs to the bake now
     bake.record_result(armature, record["summary"], record["rows"], record["fingerprint"])
     _remove_ghost(state)
     return reacted.name
 
 
 def discard_preview(armature: bpy.types.Object) -> bool:
-    """Remove the preview's ghost and action; False if there was none."""
+    """Remove the preview's ghost and action; False if there was none. A duplicated character shares
+    its original's preview pointers: what another object still uses is left alone."""
     state = bake.bake_state(armature)
-    if state.preview_action is None and state.preview_object is None:
+    if not has_preview(armature):
         return False
     action = state.preview_action
     state.preview_action = None
-    if action is not None:
-        bpy.data.actions.remove(action)
     _remove_ghost(state)
+    if action is not None and action.users == 0:
+        bpy.data.actions.remove(action)
     return True
 
 
 def _remove_ghost(state: bake.REACTIVE_ANIM_PG_bake_state) -> None:
+    """Forget the ghost; remove it unless another character's state still points at it."""
     ghost = state.preview_object
     state.preview_object = None
     state.preview_result = ""
-    if ghost is not None:
+    if ghost is not None and ghost.users == len(ghost.users_collection):  # only its collections left
         bpy.data.objects.remove(ghost)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import bpy
 
-from . import bake, bake_ops, impact_ops, impacts, marker_sync, operators, overlay, panels, settings
+from . import bake, bake_ops, impact_ops, impacts, marker_sync, operators, overlay, panels, settings, worker
 
 CLASSES = (
     impacts.REACTIVE_ANIM_PG_impact,
@@ -54,6 +54,7 @@ def register() -> None:
 
 
 def unregister() -> None:
+    worker.cancel_running()  # its modal operator is freed without being cancelled
     overlay.unregister()
     marker_sync.unregister()
     for menu, entry in reversed(MENUS):

@@ -14,10 +14,18 @@ import bpy
 from bpy.props import IntProperty, PointerProperty, StringProperty
 
 from ..core.errors import SkeletonError
+from . import impacts
+
+GHOST_TAG = "reactive_anim_ghost"  # the ID property that marks a preview's ghost (preview.py)
+
+
+def is_character(ob: bpy.types.Object) -> bool:
+    """An armature an animator works on: not a preview's ghost."""
+    return ob.type == "ARMATURE" and GHOST_TAG not in ob
 
 
 def _is_armature(_self: bpy.types.PropertyGroup, ob: bpy.types.Object) -> bool:
-    return ob.type == "ARMATURE"
+    return is_character(ob)
 
 
 class REACTIVE_ANIM_PG_scene(bpy.types.PropertyGroup):
@@ -52,25 +60,40 @@ def panel_character(context: bpy.types.Context) -> bpy.types.Object | None:
         if picked is not None and picked.name in context.scene.objects:
             return picked
     active = context.active_object
-    return active if active is not None and active.type == "ARMATURE" else None
+    return active if active is not None and is_character(active) else None
 
 
 def target_armature(context: bpy.types.Context, name: str) -> bpy.types.Object:
     """The armature an operator acts on: the one named, else the panel's character, else the only
     armature in the file. SkeletonError says what to do when none can be told."""
     if name:
-        armature = bpy.data.objects.get(name)
-        if armature is None or armature.type != "ARMATURE":
-            raise SkeletonError(f"there is no armature called '{name}'")
-        return armature
+        return armature_named(name)
     found = panel_character(context)
     if found is not None:
         return found
-    armatures = [ob for ob in bpy.data.objects if ob.type == "ARMATURE"]
+    armatures = [ob for ob in bpy.data.objects if is_character(ob)]
     if len(armatures) == 1:
         return armatures[0]
     raise SkeletonError("pick the character in the Reactions panel, select an armature, or name it (armature_name)")
 
 
+def armature_named(name: str) -> bpy.types.Object:
+    """The armature object called `name`; SkeletonError names what is missing."""
+    armature = bpy.data.objects.get(name) if name else None
+    if armature is None or armature.type != "ARMATURE":
+        raise SkeletonError(f"there is no armature called '{name}'" if name else "name the armature (armature_name)")
+    return armature
+
+
 def armatures_with_action() -> list[bpy.types.Object]:
-    return [ob for ob in bpy.data.objects if ob.type == "ARMATURE" and ob.animation_data and ob.animation_data.action]
+    return [ob for ob in bpy.data.objects if is_character(ob) and ob.animation_data and ob.animation_data.action]
+
+
+def active_impact_marker(scene: bpy.types.Scene, armature_name: str | None = None) -> bpy.types.TimelineMarker | None:
+    """The impact list's active row, if it is an impact marker (of `armature_name`, if given)."""
+    index = scene_settings(scene).active_impact
+    markers = scene.timeline_markers
+    if not 0 <= index < len(markers) or not impacts.is_impact_marker(markers[index]):
+        return None
+    marker = markers[index]
+    return marker if armature_name is None or impacts.impact_data(marker).armature == armature_name else None

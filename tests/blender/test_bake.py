@@ -148,7 +148,7 @@ def test_bake_is_one_undo_step(empty_scene):
     rig = walk_with_impacts(empty_scene)
     bpy.ops.ed.undo_push(message="impacts added")
     before = blend_snapshot()
-    assert {"REGISTER", "UNDO"} <= bake_ops.REACTIVE_ANIM_OT_bake.bl_options
+    assert "UNDO" in bake_ops.REACTIVE_ANIM_OT_bake.bl_options
     # as a button calls it: through invoke (synchronous in background mode), pushing an undo step
     assert bpy.ops.reactive_anim.bake("INVOKE_DEFAULT", True, armature_name="walk") == {"FINISHED"}
     assert rig.animation_data.action.name == "walk.reacted"

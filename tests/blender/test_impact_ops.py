@@ -53,6 +53,18 @@ def test_add_impact_takes_the_direction_from_the_view(empty_scene):
     assert rig.name == "walk"
 
 
+def test_a_button_in_the_sidebar_aims_along_its_own_view(empty_scene):
+    window = bpy.context.window
+    area = next(a for a in window.screen.areas if a.type == "VIEW_3D")
+    sidebar = next(r for r in area.regions if r.type == "UI")
+    area.spaces.active.region_3d.view_rotation = _view_looking((-1.0, 0.0, 0.0))
+    with bpy.context.temp_override(window=window, area=area, region=sidebar):
+        assert bpy.context.region_data is None  # a sidebar has no view of its own
+        rotation = impact_ops.view_rotation_of(bpy.context)
+    assert rotation is not None
+    assert np.allclose(impact_ops.view_direction(rotation, True), (-1.0, 0.0, 0.0), atol=1e-6)
+
+
 def test_add_impact_defaults_to_the_current_frame_the_active_bone_and_the_panel_character(empty_scene):
     rig = walk_with_impacts(empty_scene)
     settings.scene_settings(empty_scene).character = rig

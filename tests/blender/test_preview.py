@@ -7,7 +7,7 @@ import bpy
 import numpy as np
 import pytest
 
-from reactive_anim.blender import action_io, bake, preview
+from reactive_anim.blender import action_io, bake, preview, settings
 from tests.support.actions import keyframes
 from tests.support.bake_scene import blend_snapshot, walk_with_impacts
 
@@ -93,3 +93,42 @@ def test_a_bake_replaces_a_pending_preview_and_a_second_preview_replaces_the_fir
     assert [ob.name for ob in bpy.data.objects] == ["walk"]
     assert sorted(bpy.data.actions.keys()) == ["walk", "walk.reacted"]
     assert not preview.has_preview(bpy.data.objects["walk"])
+
+
+def test_a_refused_accept_keeps_the_preview_and_discard_still_removes_it(empty_scene):
+    rig = walk_with_impacts(empty_scene)
+    bpy.ops.reactive_anim.preview(armature_name="walk")
+    rig.animation_data.action = bpy.data.actions.new("other")  # the character changed meanwhile
+
+    with pytest.raises(RuntimeError, match="now plays 'other', not 'walk' as when the preview was made"):
+        bpy.ops.reactive_anim.accept_preview(armature_name="walk")
+
+    assert "walk.preview" in bpy.data.objects and "walk.preview" in bpy.data.actions
+    assert preview.has_preview(rig)
+    assert bpy.ops.reactive_anim.discard_preview(armature_name="walk") == {"FINISHED"}
+    assert "walk.preview" not in bpy.data.objects and "walk.preview" not in bpy.data.actions
+
+
+def test_the_ghost_is_never_taken_for_the_character(empty_scene):
+    walk_with_impacts(empty_scene)
+    bpy.ops.reactive_anim.preview(armature_name="walk")
+    ghost = bpy.data.objects["walk.preview"]
+    assert not settings.is_character(ghost)
+    assert settings.armatures_with_action() == [bpy.data.objects["walk"]]
+    bpy.context.view_layer.objects.active = None
+    assert settings.target_armature(bpy.context, "") == bpy.data.objects["walk"]  # the only character
+    assert bpy.ops.reactive_anim.accept_preview() == {"FINISHED"}  # no name: the character, not its ghost
+
+
+def test_a_duplicated_character_never_removes_what_its_original_uses(empty_scene):
+    rig = walk_with_impacts(empty_scene)
+    bpy.ops.reactive_anim.bake(armature_name="walk")
+    copy = rig.copy()  # as Shift+D: the bake state (with its pointers) is copied too
+    copy.animation_data.action = rig.animation_data.action.copy()
+    empty_scene.collection.objects.link(copy)
+
+    assert bpy.ops.reactive_anim.clear_bake(armature_name=copy.name) == {"FINISHED"}
+
+    assert rig.animation_data.action.name == "walk.reacted"  # the original keeps its bake
+    assert bpy.ops.reactive_anim.clear_bake(armature_name="walk") == {"FINISHED"}
+    assert rig.animation_data.action.name == "walk"
