@@ -1,0 +1,438 @@
+"""Retargeting: a motion recorded on one skeleton, played by another whose bones map to the same roles.
+
+Why: a reaction library is recorded on one skeleton, the animator's character is on another (a
+CMU-style BVH, a Bandai Namco one, a Mixamo or Rigify rig, in T-pose or A-pose). Joint-local
+rotations mean nothing across skeletons: each is relative to its own rest pose, and rest poses
+differ (arms out or down, other proportions, extra spine joints).
+
+What is transferred, per role joint (roles.py): the rotation the joint makes away from a common
+reference, not away from its own rest pose. In the core's convention the rest pose has identity
+rotations, so a joint's global rotation G is its rotation away from rest, in world axes. For each
+role the rest alignment Q (target rest frame -> source rest frame) turns the target's bone onto the
+source's bone in the rest pose: its primary axis is the bone (from the role joint to the next role
+joint down the chain), its secondary axis the body's left-right line (hips for the legs and
+pelvis, shoulders above). So G_target = G_source Q: in the rest pose a T-pose arm maps onto an
+A-pose arm, and from there every turn carries over. Each role bone is then swung onto the
+source bone's actual direction (which also follows any extra joints the source bends along the
+way), so bone directions match the source's exactly; twist comes from the source's joint. The
+pelvis, the root body, takes the source's turn as it is.
+
+Joints without a role (fingers, face, helper bones, extra spine joints) keep their rest pose, or
+the target's own animation when a `base` motion is given. Root motion is scaled by the ratio of
+leg lengths. Where a foot of the source is planted, the target's foot is held on the floor and in
+place by a two-bone leg IK (hip and knee), eased in and out, so proportions that differ do not make
+the foot float, sink or slide.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import quat
+from .errors import SkeletonError
+from .roles import SIDES, assign_roles
+from .skeleton import Motion, Skeleton, forward_kinematics
+
+# Each role's bone: from the role joint toward the next role down the chain (None: no role below,
+# the bone points to the joint's own child or end site).
+NEXT_ROLE = {
+    "pelvis": "waist",
+    "waist": "back",
+    "back": "chest",
+    "chest": "neck",
+    "neck": "head",
+    "head": None,
+    **{f"hip_{s}": f"knee_{s}" for s in SIDES},
+    **{f"knee_{s}": f"ankle_{s}" for s in SIDES},
+    **{f"ankle_{s}": f"toe_{s}" for s in SIDES},
+    **{f"toe_{s}": None for s in SIDES},
+    **{f"clavicle_{s}": f"shoulder_{s}" for s in SIDES},
+    **{f"shoulder_{s}": f"elbow_{s}" for s in SIDES},
+    **{f"elbow_{s}": f"wrist_{s}" for s in SIDES},
+    **{f"wrist_{s}": None for s in SIDES},
+}
+LOWER_BODY = {"pelvis", *(f"{part}_{s}" for part in ("hip", "knee", "ankle", "toe") for s in SIDES)}
+
+# A source foot is planted where its ankle is within this of its lowest height in the clip and it
+# moves slower than this; the IK eases in and out over EASE_FRAMES frames.
+PLANT_HEIGHT = 0.05  # metres, scaled by the source's leg length / 0.9 m
+PLANT_SPEED = 0.35  # metres per second, likewise scaled
+EASE_FRAMES = 4
+MIN_BONE = 1e-3  # metres: a shorter bone has no usable direction
+
+
+@dataclass(frozen=True)
+class RetargetMap:
+    """How one skeleton's motion plays on another: joint pairs per role and the rest alignment."""
+
+    source: Skeleton
+    target: Skeleton
+    roles: list[str]  # the roles both skeletons have, in the target's joint order
+    source_joints: np.ndarray  # (R,)
+    target_joints: np.ndarray  # (R,)
+    source_child: np.ndarray  # (R,) joint the source bone points to (-1: none)
+    target_child: np.ndarray  # (R,) likewise in the target
+    align: np.ndarray  # (R, 4) Q: target rest frame -> source rest frame
+    scale: float  # target leg length / source leg length
+    between: list[list[tuple[int, float]]]  # per role: target joints on its bone without a role, with shares
+
+
+def retarget_map(
+    source: Skeleton,
+    target: Skeleton,
+    source_roles: dict[str, str] | None = None,
+    target_roles: dict[str, str] | None = None,
+) -> RetargetMap:
+    """The map from `source` to `target`; roles default to the skeletons' own (or found by name)."""
+    src_roles = _distinct(source, source_roles or source.roles or assign_roles(source))
+    tgt_roles = _distinct(target, target_roles or target.roles or assign_roles(target))
+    shared = [r for r in NEXT_ROLE if r in src_roles and r in tgt_roles]
+    shared.sort(key=lambda r: target.index(tgt_roles[r]))
+    src_pos, tgt_pos = source.rest_positions(), target.rest_positions()
+    src_j = np.array([source.index(src_roles[r]) for r in shared])
+    tgt_j = np.array([target.index(tgt_roles[r]) for r in shared])
+    ends = [_next_role(r, shared, ((source, src_roles), (target, tgt_roles))) for r in shared]
+    src_child = np.array([_bone_end(source, src_roles, r, nxt) for r, nxt in zip(shared, ends, strict=True)])
+    tgt_child = np.array([_bone_end(target, tgt_roles, r, nxt) for r, nxt in zip(shared, ends, strict=True)])
+    align = np.empty((len(shared), 4))
+    for k, role in enumerate(shared):
+        side = _lateral_pair(role)
+        align[k] = _rest_alignment(
+            _bone_direction(target, tgt_pos, tgt_j[k], tgt_child[k]),
+            _lateral(target, tgt_roles, tgt_pos, side),
+            _bone_direction(source, src_pos, src_j[k], src_child[k]),
+            _lateral(source, src_roles, src_pos, side),
+        )
+    scale = leg_length(target, tgt_roles) / leg_length(source, src_roles)
+    between = [_between(target, int(j), int(c), set(tgt_j.tolist())) for j, c in zip(tgt_j, tgt_child, strict=True)]
+    return RetargetMap(source, target, shared, src_j, tgt_j, src_child, tgt_child, align, scale, between)
+
+
+def _between(target: Skeleton, joint: int, child: int, role_joints: set[int]) -> list[tuple[int, float]]:
+    """Target joints without a role on a role's bone (extra spine or neck joints), each with its
+    share of the bone's rest length from the top: they take that share of the source's turn from
+    this role to the next, so the chain curves as the source's does instead of kinking at one joint."""
+    if child < 0 or child not in role_joints:
+        return []
+    chain = _path(target, joint, child)[::-1]  # joint, ..., child
+    if chain[0] != joint or len(chain) < 3:
+        return []
+    rest = target.rest_positions()
+    lengths = np.linalg.norm(np.diff(rest[chain], axis=0), axis=1)
+    share = np.cumsum(lengths) / max(float(lengths.sum()), 1e-9)
+    return [(j, float(w)) for j, w in zip(chain[1:-1], share[:-1], strict=True) if j not in role_joints]
+
+
+def leg_length(skeleton: Skeleton, roles: dict[str, str]) -> float:
+    """Mean of the two legs' thigh + shin rest lengths, metres."""
+    pos = skeleton.rest_positions()
+    lengths = []
+    for s in SIDES:
+        hip, knee, ankle = (pos[skeleton.index(roles[f"{p}_{s}"])] for p in ("hip", "knee", "ankle"))
+        lengths.append(np.linalg.norm(knee - hip) + np.linalg.norm(ankle - knee))
+    length = float(np.mean(lengths))
+    if not length > 1e-6:
+        raise SkeletonError("the legs have no length in the rest pose (hip, knee and ankle coincide)")
+    return length
+
+
+def _distinct(skeleton: Skeleton, roles: dict[str, str]) -> dict[str, str]:
+    """The roles without a `back` that shares the waist's or chest's joint (roles.py allows it): one
+    joint cannot take two roles' rotations, and its bone would have no length."""
+    shared = roles.get("back") in (roles.get("waist"), roles.get("chest"))
+    return {r: name for r, name in roles.items() if not (r == "back" and shared)}
+
+
+def _next_role(role: str, shared: list[str], skeletons: tuple[tuple[Skeleton, dict[str, str]], ...]) -> str | None:
+    """The role a role's bone points to, the same on both skeletons (so the bone means the same):
+    the next one down the chain that both have, away from this joint on both (a zero-length bone
+    has no direction)."""
+    nxt = NEXT_ROLE[role]
+    while nxt is not None:
+        if nxt in shared and all(_distance(s, roles, role, nxt) > MIN_BONE for s, roles in skeletons):
+            return nxt
+        nxt = NEXT_ROLE[nxt]
+    return None
+
+
+def _distance(skeleton: Skeleton, roles: dict[str, str], a: str, b: str) -> float:
+    rest = skeleton.rest_positions()
+    return float(np.linalg.norm(rest[skeleton.index(roles[a])] - rest[skeleton.index(roles[b])]))
+
+
+def _bone_end(skeleton: Skeleton, roles: dict[str, str], role: str, nxt: str | None) -> int:
+    """The joint a role's bone points to: the next role's, else the joint's first child away from it
+    (-1: none)."""
+    if nxt is not None:
+        return skeleton.index(roles[nxt])
+    rest = skeleton.rest_positions()
+    joint = skeleton.index(roles[role])
+    children = [c for c in skeleton.children(joint) if np.linalg.norm(rest[c] - rest[joint]) > MIN_BONE]
+    return children[0] if children else -1
+
+
+def _bone_direction(skeleton: Skeleton, rest: np.ndarray, joint: int, child: int) -> np.ndarray:
+    """Unit rest direction of a bone; a bone without a child points along its end site, else up."""
+    vector = rest[child] - rest[joint] if child >= 0 else skeleton.end_sites.get(int(joint), np.array([0.0, 0, 1]))
+    norm = np.linalg.norm(vector)
+    return vector / norm if norm > 1e-9 else np.array([0.0, 0.0, 1.0])
+
+
+def _lateral_pair(role: str) -> tuple[str, str]:
+    return ("hip_l", "hip_r") if role in LOWER_BODY else ("shoulder_l", "shoulder_r")
+
+
+def _lateral(skeleton: Skeleton, roles: dict[str, str], rest: np.ndarray, pair: tuple[str, str]) -> np.ndarray:
+    """The body's right-to-left line in the rest pose, from a pair of role joints."""
+    left, right = (rest[skeleton.index(roles[r])] for r in pair)
+    vector = left - right
+    return vector / max(float(np.linalg.norm(vector)), 1e-9)
+
+
+def _frame(primary: np.ndarray, secondary: np.ndarray) -> np.ndarray:
+    """Orthonormal frame (columns) with its first axis along `primary`, its second toward `secondary`."""
+    a = primary / np.linalg.norm(primary)
+    b = secondary - a * np.dot(a, secondary)
+    if np.linalg.norm(b) < 1e-6:  # the bone runs along the left-right line (an arm in T-pose)
+        b = np.array([0.0, 0.0, 1.0]) - a * a[2]
+        if np.linalg.norm(b) < 1e-6:
+            b = np.array([1.0, 0.0, 0.0]) - a * a[0]
+    b = b / np.linalg.norm(b)
+    return np.stack([a, b, np.cross(a, b)], axis=1)
+
+
+def _rest_alignment(t_bone: np.ndarray, t_side: np.ndarray, s_bone: np.ndarray, s_side: np.ndarray) -> np.ndarray:
+    """Q with Q t_bone = s_bone and Q's turn of t_side as close to s_side as the bones allow."""
+    return quat.from_matrix(_frame(s_bone, s_side) @ _frame(t_bone, t_side).T)
+
+
+def arc(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The smallest rotations taking unit vectors u onto v, (..., 4); opposite vectors turn about
+    any axis at right angles."""
+    dot = np.sum(u * v, axis=-1)
+    axis = np.cross(u, v)
+    q = np.concatenate([(1.0 + dot)[..., None], axis], axis=-1)
+    opposite = dot < -1.0 + 1e-9
+    if np.any(opposite):
+        other = np.where(np.abs(u[..., :1]) < 0.9, np.array([1.0, 0, 0]), np.array([0.0, 1, 0]))
+        perpendicular = np.cross(u, other)
+        perpendicular /= np.linalg.norm(perpendicular, axis=-1, keepdims=True)
+        q[opposite] = np.concatenate([np.zeros(perpendicular.shape[:-1] + (1,)), perpendicular], axis=-1)[opposite]
+    return quat.normalize(q)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
+
+
+def retarget(motion: Motion, mapping: RetargetMap, base: Motion | None = None, fix_feet: bool = True) -> Motion:
+    """`motion` (on mapping.source) played by mapping.target.
+
+    base: the target's own motion (same frame count) whose joints without a role are kept (fingers,
+    face); None keeps their rest pose. fix_feet: hold the target's feet where the source's are
+    planted (see the module docstring).
+    """
+    if motion.skeleton.names != mapping.source.names:
+        raise SkeletonError("the motion's skeleton is not the retarget map's source skeleton")
+    if base is not None and (base.skeleton.names != mapping.target.names or base.num_frames != motion.num_frames):
+        raise SkeletonError("the base motion must be on the target skeleton, with as many frames as the motion")
+    src_pos, src_rot = motion.global_transforms()
+    target = mapping.target
+    n, count = motion.num_frames, target.num_joints
+    keep = quat.normalize(base.local_rot) if base is not None else quat.identity((n, count))
+    glob = _chain_globals(target, _wanted_globals(mapping, src_pos, src_rot), keep)
+    root_pos = _root_positions(mapping, motion, glob, src_pos)
+    out = Motion(skeleton=target, fps=motion.fps, root_pos=root_pos, local_rot=_locals(target, glob))
+    if fix_feet:
+        out = _plant_feet(mapping, motion, (src_pos, src_rot), out)
+    return out
+
+
+def _wanted_globals(mapping: RetargetMap, src_pos: np.ndarray, src_rot: np.ndarray) -> dict[int, np.ndarray]:
+    """Target joint -> (T, 4) global rotation, for every role joint and the joints on its bone: the
+    source's turn through the rest alignment (joints on the bone: their share of the turn to the next
+    role), then all swung so the bone lies along the source bone's actual direction."""
+    rest = mapping.target.rest_positions()
+    n = len(src_pos)
+    wanted = {}
+    for k in range(len(mapping.roles)):
+        top_s, end_s = mapping.source_joints[k], mapping.source_child[k]
+        top_t, end_t = int(mapping.target_joints[k]), mapping.target_child[k]
+        rots = {top_t: quat.mul(src_rot[:, top_s], mapping.align[k])}
+        for joint, share in mapping.between[k]:
+            turn = quat.slerp(src_rot[:, top_s], src_rot[:, end_s], np.full(n, share))
+            rots[joint] = quat.mul(turn, mapping.align[k])
+        if end_s >= 0 and end_t >= 0 and mapping.roles[k] != "pelvis":  # the root body turns as the source's
+            chain = [*rots, int(end_t)]
+            now = sum(quat.rotate(rots[a], rest[b] - rest[a]) for a, b in itertools.pairwise(chain))
+            swing = arc(_unit(np.asarray(now)), _unit(src_pos[:, end_s] - src_pos[:, top_s]))
+            rots = {j: quat.mul(swing, r) for j, r in rots.items()}
+        wanted.update(rots)
+    return wanted
+
+
+def _chain_globals(target: Skeleton, wanted: dict[int, np.ndarray], keep: np.ndarray) -> np.ndarray:
+    """Global rotations (T, J, 4) of every target joint: role joints as wanted, the others carried
+    by their parent with their kept local rotation."""
+    n, count = keep.shape[:2]
+    glob = np.empty((n, count, 4))
+    for j in range(count):
+        if j in wanted:
+            glob[:, j] = wanted[j]
+        elif target.parents[j] < 0:
+            glob[:, j] = keep[:, j]
+        else:
+            glob[:, j] = quat.mul(glob[:, target.parents[j]], keep[:, j])
+    return glob
+
+
+def _locals(target: Skeleton, glob: np.ndarray) -> np.ndarray:
+    local = glob.copy()
+    child = np.arange(1, target.num_joints)
+    local[:, child] = quat.mul(quat.conj(glob[:, target.parents[child]]), glob[:, child])
+    return quat.make_continuous(quat.normalize(local))
+
+
+def _root_positions(mapping: RetargetMap, motion: Motion, glob: np.ndarray, src_pos: np.ndarray) -> np.ndarray:
+    """Target root positions that put the target's pelvis at the source's, scaled by leg length
+    (heights measured from the floor, z = 0, in both)."""
+    target = mapping.target
+    pelvis_k = mapping.roles.index("pelvis")
+    want = src_pos[:, mapping.source_joints[pelvis_k]] * mapping.scale
+    zero = np.zeros((motion.num_frames, 3))
+    local = _locals(target, glob)
+    at_origin = forward_kinematics(target, zero, local, target.offsets)[0][:, mapping.target_joints[pelvis_k]]
+    return want - at_origin
+
+
+# ---------------------------------------------------------------------------------------------
+# Feet
+
+
+def planted(motion: Motion, ankle: int, positions: np.ndarray, leg: float) -> np.ndarray:
+    """(T,) frames where the ankle rests on the floor: low (near its lowest height) and slow."""
+    height = positions[:, ankle, 2]
+    speed = np.zeros(motion.num_frames)
+    if motion.num_frames > 1:
+        step = np.linalg.norm(np.diff(positions[:, ankle], axis=0), axis=-1) * motion.fps
+        speed[1:] = step
+        speed[0] = step[0]
+    scale = leg / 0.9
+    return (height < height.min() + PLANT_HEIGHT * scale) & (speed < PLANT_SPEED * scale)
+
+
+def _plant_feet(mapping: RetargetMap, motion: Motion, source: tuple[np.ndarray, np.ndarray], out: Motion) -> Motion:
+    """Hold each target foot where the source's is planted: in place from the frame the plant began,
+    its lowest point (toes, end sites) as high as the source foot's, scaled. Measured on the feet as
+    they are posed, so it holds whatever the skeletons' rest poses."""
+    source_roles = dict(zip(mapping.roles, mapping.source_joints, strict=True))
+    target_roles = dict(zip(mapping.roles, mapping.target_joints, strict=True))
+    if not all(f"{p}_{s}" in source_roles for p in ("hip", "knee", "ankle") for s in SIDES):
+        return out
+    src_leg = leg_length(mapping.source, {r: mapping.source.names[j] for r, j in source_roles.items()})
+    feet = [(source_roles[f"ankle_{s}"], target_roles[f"ankle_{s}"], s) for s in SIDES]
+    down = {s: planted(motion, ankle_s, source[0], src_leg) for ankle_s, _, s in feet}
+    if not any(d.any() for d in down.values()):
+        return out
+    pos, glob = out.global_transforms()
+    # Height of each target foot's lowest point over where the source's puts it (scaled), per frame.
+    over = {
+        s: lowest_foot_point(mapping.target, ankle_t, pos, glob)
+        - lowest_foot_point(mapping.source, ankle_s, *source) * mapping.scale
+        for ankle_s, ankle_t, s in feet
+    }
+    # Proportions differ (pelvis over hips, ankles over soles): first the whole body down (or up) by
+    # the most any planted foot floats, then the legs lift the feet that would sink (a leg can bend
+    # but not stretch).
+    sink = float(np.max(np.concatenate([over[s][down[s]] for s in down])))
+    root_pos = out.root_pos - np.array([0.0, 0.0, sink])
+    pos[..., 2] -= sink
+    for _, ankle_t, s in feet:
+        if not down[s].any():
+            continue
+        goal = pos[:, ankle_t].copy()
+        goal[:, 2] -= over[s] - sink
+        joints = (target_roles[f"hip_{s}"], target_roles[f"knee_{s}"], ankle_t)
+        _two_bone_ik(mapping.target, pos, glob, joints, _held_in_place(goal, down[s]), _eased(down[s]))
+    return Motion(skeleton=out.skeleton, fps=out.fps, root_pos=root_pos, local_rot=_locals(mapping.target, glob))
+
+
+def lowest_foot_point(skeleton: Skeleton, ankle: int, positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+    """(T,) height of a foot's lowest point: the ankle, the joints below it and their end sites."""
+    below = [j for j in range(skeleton.num_joints) if ankle in _path(skeleton, ankle, j)]
+    heights = [positions[:, j, 2] for j in below]
+    for j in below:
+        if j in skeleton.end_sites:
+            heights.append(positions[:, j, 2] + quat.rotate(rotations[:, j], skeleton.end_sites[j])[:, 2])
+    return np.min(heights, axis=0)
+
+
+def _held_in_place(goal: np.ndarray, down: np.ndarray) -> np.ndarray:
+    """Within each planted run, the goal's ground position stays where the run began."""
+    held = goal.copy()
+    start = None
+    for t, on in enumerate(down):
+        if on and start is None:
+            start = t
+        elif not on:
+            start = None
+        if start is not None:
+            held[t, :2] = goal[start, :2]
+    return held
+
+
+def _eased(down: np.ndarray) -> np.ndarray:
+    """1 on planted frames, ramping to 0 over EASE_FRAMES frames on either side."""
+    distance = np.full(len(down), np.inf)
+    on = np.flatnonzero(down)
+    if len(on):
+        distance = np.min(np.abs(np.arange(len(down))[:, None] - on[None, :]), axis=1)
+    return np.clip(1.0 - distance / (EASE_FRAMES + 1), 0.0, 1.0)
+
+
+def _two_bone_ik(
+    skeleton: Skeleton,
+    pos: np.ndarray,
+    glob: np.ndarray,
+    joints: tuple[int, int, int],
+    goal: np.ndarray,
+    weight: np.ndarray,
+) -> None:
+    """Turn hip and knee (global rotations, in place) so the ankle reaches toward `goal` by `weight`;
+    the knee bends in the plane it already bends in, the foot keeps its world orientation."""
+    hip, knee, ankle = joints
+    for t in np.flatnonzero(weight > 0):
+        h, k, a = pos[t, hip], pos[t, knee], pos[t, ankle]
+        target = a + weight[t] * (goal[t] - a)
+        thigh, shin = np.linalg.norm(k - h), np.linalg.norm(a - k)
+        reach = np.clip(np.linalg.norm(target - h), abs(thigh - shin) + 1e-4, thigh + shin - 1e-4)
+        bend_axis = np.cross(h - k, a - k)
+        if np.linalg.norm(bend_axis) < 1e-9:  # a straight leg: bend forward, about the hips' line
+            bend_axis = quat.rotate(glob[t, hip], np.array([1.0, 0.0, 0.0]))
+        bend_axis = bend_axis / np.linalg.norm(bend_axis)
+        now = np.arccos(np.clip(np.dot(_unit(h - k), _unit(a - k)), -1.0, 1.0))
+        want = np.arccos(np.clip((thigh**2 + shin**2 - reach**2) / (2 * thigh * shin), -1.0, 1.0))
+        turn_knee = quat.from_axis_angle(bend_axis, want - now)  # opens the knee's angle by want - now
+        new_a = k + quat.rotate(turn_knee, a - k)
+        swing = arc(_unit(new_a - h), _unit(target - h))
+        foot = glob[t, ankle].copy()
+        chain = _path(skeleton, hip, ankle)  # ankle, ..., knee, ..., hip
+        shin_joints, thigh_joints = chain[1 : chain.index(knee) + 1], chain[chain.index(knee) + 1 :]
+        for j in shin_joints:
+            glob[t, j] = quat.mul(swing, quat.mul(turn_knee, glob[t, j]))
+        for j in thigh_joints:
+            glob[t, j] = quat.mul(swing, glob[t, j])
+        glob[t, ankle] = foot
+        pos[t, knee] = h + quat.rotate(swing, k - h)
+        pos[t, ankle] = h + quat.rotate(swing, new_a - h)
+
+
+def _path(skeleton: Skeleton, top: int, bottom: int) -> list[int]:
+    """Joints from `bottom` up to `top`, both included."""
+    chain = [bottom]
+    while chain[-1] != top and skeleton.parents[chain[-1]] >= 0:
+        chain.append(int(skeleton.parents[chain[-1]]))
+    return chain

@@ -1,0 +1,180 @@
+"""Retargeting (core/retarget.py): the sample walk played by skeletons with other rest poses and
+proportions (a T-pose variant of the sample skeleton made here; the shared CMU-derived iClone,
+Bandai Namco and CMU skeletons where ../shared is present), and back again."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from reactive_anim.core import bvh, quat, retarget
+from reactive_anim.core.errors import SkeletonError
+from reactive_anim.core.roles import SIDES, assign_roles
+from reactive_anim.core.skeleton import Motion, Skeleton
+from tests.support.mocap import REPO, mocap_files
+
+WALK = bvh.read_bvh(REPO / "sample_clips" / "walk.bvh")
+SHARED = {
+    "iclone": "cmu_iclone/002_01.bvh",
+    "bandai": "bandai_namco/dataset-1/dataset-1_walk_normal_001.bvh",
+    "cmu": "cmu/139_16.bvh",
+}
+
+
+def _turned_chain(skeleton: Skeleton, top: str, rotation: np.ndarray) -> Skeleton:
+    """The skeleton with every offset below joint `top` (and their end sites) turned by `rotation`."""
+    offsets, ends = skeleton.offsets.copy(), dict(skeleton.end_sites)
+    start = skeleton.index(top)
+    below = [j for j in range(skeleton.num_joints) if j != start and start in _ancestors(skeleton, j)]
+    for j in below:
+        offsets[j] = quat.rotate(rotation, offsets[j])
+    for j in [start, *below]:
+        if j in ends:
+            ends[j] = quat.rotate(rotation, ends[j])
+    return replace(skeleton, offsets=offsets, end_sites=ends, roles={})
+
+
+def _ancestors(skeleton: Skeleton, joint: int) -> list[int]:
+    found = []
+    while skeleton.parents[joint] >= 0:
+        joint = int(skeleton.parents[joint])
+        found.append(joint)
+    return found
+
+
+def t_pose_variant() -> Skeleton:
+    """The sample skeleton with its arms out sideways (T-pose) instead of down, legs 12% longer, and
+    a finger (a joint without a role) on the left hand."""
+    skeleton = _with_finger(WALK.skeleton)
+    for side, sign in (("L", 1.0), ("R", -1.0)):
+        # down (0, 0, -1) -> out (sign, 0, 0): a quarter turn about the forward axis
+        skeleton = _turned_chain(skeleton, f"upper_arm.{side}", quat.from_axis_angle([0, 1.0, 0], -sign * np.pi / 2))
+    offsets = skeleton.offsets.copy()
+    for name in ("shin.L", "shin.R", "foot.L", "foot.R"):
+        offsets[skeleton.index(name)] *= 1.12
+    return replace(skeleton, offsets=offsets)
+
+
+def _with_finger(skeleton: Skeleton) -> Skeleton:
+    hand = skeleton.index("hand.L")
+    ends = {j: v for j, v in skeleton.end_sites.items() if j != hand}
+    count = skeleton.num_joints
+    ends[count] = np.array([0.0, 0.0, -0.08])
+    return Skeleton(
+        names=[*skeleton.names, "finger.L"],
+        parents=np.append(skeleton.parents, hand),
+        offsets=np.vstack([skeleton.offsets, [0.0, 0.0, -0.1]]),
+        end_sites=ends,
+    )
+
+
+def _targets() -> list[tuple[str, Skeleton]]:
+    """The T-pose variant, and the shared skeletons that are present (../shared is test-only data)."""
+    found = [("t-pose variant", t_pose_variant())]
+    for label, relative in SHARED.items():
+        path = next((p for p in mocap_files() if p.as_posix().endswith(relative)), None)
+        if path is not None:
+            found.append((label, bvh.read_bvh(path).skeleton))
+    return found
+
+
+TARGETS = _targets()
+
+
+def _role_joint_angles(a: Motion, b: Motion) -> dict[str, float]:
+    """Mean angle (degrees) between the two motions' global rotations, per role joint."""
+    roles = assign_roles(a.skeleton)
+    ra, rb = a.global_rotations(), b.global_rotations()
+    return {
+        role: float(np.degrees(quat.angle_between(ra[:, a.skeleton.index(n)], rb[:, a.skeleton.index(n)])).mean())
+        for role, n in roles.items()
+    }
+
+
+@pytest.mark.parametrize(("label", "target"), TARGETS, ids=[t[0] for t in TARGETS])
+def test_there_and_back_returns_the_original_within_2_degrees(label, target):
+    """The rotation transfer alone is exact where both skeletons have the joints (the spine loses
+    the split of a bend among joints one skeleton lacks); the feet's leg IK then fits the legs to
+    the other proportions, a few degrees that a round trip does not undo."""
+    for fix_feet, limit in ((False, 2.0), (True, 5.0)):
+        there = retarget.retarget(WALK, retarget.retarget_map(WALK.skeleton, target), fix_feet=fix_feet)
+        back = retarget.retarget(there, retarget.retarget_map(target, WALK.skeleton), fix_feet=fix_feet)
+        angles = _role_joint_angles(WALK, back)
+        assert max(angles.values()) < limit, (fix_feet, {r: round(v, 2) for r, v in angles.items() if v > 0.5})
+    np.testing.assert_allclose(back.root_pos[:, :2], WALK.root_pos[:, :2], atol=0.02)
+
+
+@pytest.mark.parametrize(("label", "target"), TARGETS, ids=[t[0] for t in TARGETS])
+def test_role_bones_point_where_the_sources_do(label, target):
+    mapping = retarget.retarget_map(WALK.skeleton, target)
+    out = retarget.retarget(WALK, mapping)
+    src, got = WALK.global_positions(), out.global_positions()
+    for k, role in enumerate(mapping.roles):
+        if mapping.source_child[k] < 0 or mapping.target_child[k] < 0:
+            continue
+        a = src[:, mapping.source_child[k]] - src[:, mapping.source_joints[k]]
+        b = got[:, mapping.target_child[k]] - got[:, mapping.target_joints[k]]
+        cos = np.sum(a * b, -1) / np.linalg.norm(a, axis=-1) / np.linalg.norm(b, axis=-1)
+        assert np.degrees(np.arccos(np.clip(cos, -1, 1))).mean() < 5.0, role
+
+
+@pytest.mark.parametrize(("label", "target"), TARGETS, ids=[t[0] for t in TARGETS])
+def test_planted_feet_neither_float_sink_nor_slide(label, target):
+    mapping = retarget.retarget_map(WALK.skeleton, target)
+    out = retarget.retarget(WALK, mapping)
+    src_pos, src_rot = WALK.global_transforms()
+    pos, rot = out.global_transforms()
+    legs = retarget.leg_length(WALK.skeleton, assign_roles(WALK.skeleton))
+    for side in SIDES:
+        k = mapping.roles.index(f"ankle_{side}")
+        ankle_s, ankle_t = mapping.source_joints[k], mapping.target_joints[k]
+        down = retarget.planted(WALK, ankle_s, src_pos, legs)
+        assert down.sum() > 40  # the walk plants each foot for a good part of the clip
+        height = retarget.lowest_foot_point(target, ankle_t, pos, rot)
+        wanted = retarget.lowest_foot_point(WALK.skeleton, ankle_s, src_pos, src_rot) * mapping.scale
+        assert np.abs(height - wanted)[down].max() < 0.01, (side, np.abs(height - wanted)[down].max())
+        for run in np.split(np.flatnonzero(down), np.flatnonzero(np.diff(np.flatnonzero(down)) > 1) + 1):
+            slide = np.linalg.norm(pos[run, ankle_t, :2] - pos[run[0], ankle_t, :2], axis=-1).max()
+            assert slide < 0.02, (side, run[0], slide)
+
+
+def test_a_rest_pose_plays_as_the_sources_rest_pose_not_the_targets():
+    """The sample skeleton stands arms down; its rest pose on the T-pose variant has the arms down
+    too: the rest alignment carries the pose, not the rest pose's rotations (identity)."""
+    still = Motion(WALK.skeleton, 60.0, WALK.root_pos[:1], quat.identity((1, WALK.skeleton.num_joints)))
+    target = t_pose_variant()
+    out = retarget.retarget(still, retarget.retarget_map(WALK.skeleton, target), fix_feet=False)
+    pos = out.global_positions()[0]
+    for side in SIDES:
+        upper, lower = (target.index(f"{part}.{side.upper()}") for part in ("upper_arm", "forearm"))
+        arm = (pos[lower] - pos[upper]) / np.linalg.norm(pos[lower] - pos[upper])
+        assert arm[2] < -0.99, arm  # straight down, as the source stands
+
+
+def test_joints_without_a_role_keep_the_base_motion_or_the_rest_pose():
+    target = t_pose_variant()
+    mapping = retarget.retarget_map(WALK.skeleton, target)
+    turns = quat.from_axis_angle([1.0, 0, 0], np.linspace(0, 1, WALK.num_frames))[:, None]
+    base_rot = np.concatenate([np.roll(WALK.local_rot, 5, axis=0), turns], axis=1)
+    base = Motion(target, WALK.fps, WALK.root_pos, base_rot)
+    roleless = [j for j in range(target.num_joints) if j not in mapping.target_joints]
+    kept = retarget.retarget(WALK, mapping, base=base, fix_feet=False)
+    rested = retarget.retarget(WALK, mapping, fix_feet=False)
+    for j in roleless:
+        if any(j == joint for chain in mapping.between for joint, _ in chain):
+            continue  # on a role's bone: shares the turn
+        same = np.abs(np.sum(kept.local_rot[:, j] * quat.normalize(base.local_rot[:, j]), -1))
+        np.testing.assert_allclose(same, 1, atol=1e-6)
+        np.testing.assert_allclose(np.abs(rested.local_rot[:, j, 0]), 1, atol=1e-6)
+    assert [target.names[j] for j in roleless] == ["finger.L"]
+
+
+def test_a_motion_of_another_skeleton_is_refused():
+    mapping = retarget.retarget_map(WALK.skeleton, t_pose_variant())
+    renamed = replace(WALK, skeleton=replace(WALK.skeleton, names=[n + "_x" for n in WALK.skeleton.names]))
+    with pytest.raises(SkeletonError, match="not the retarget map's source skeleton"):
+        retarget.retarget(renamed, mapping)
+    with pytest.raises(SkeletonError, match="base motion must be on the target skeleton"):
+        retarget.retarget(WALK, mapping, base=WALK)
