@@ -41,7 +41,7 @@ from ..core.impact import Impact
 from ..core.library import Library
 from ..core.react import Baked, Reaction, ReactionClassifier, ReactionSettings, bake_reactions
 from ..core.skeleton import Motion
-from . import action_io, impacts, resources, settings
+from . import action_io, impacts, resources, role_map, settings
 
 REACTED_SUFFIX = ".reacted"
 # The bake state a failed write puts back (the summary is only written after a bake succeeds).
@@ -244,6 +244,7 @@ def prepare_bake(
     opened = library if isinstance(library, Library) else resources.open_library(library)
     model, note = classifier if classifier is not None else resources.open_classifier(model_path)
     motion = action_io.read_motion(armature, source, (first, last))
+    role_map.apply_character_roles(armature, motion.skeleton)
     labels = [impacts.marker_label(m) for m in markers]
     for label, impact in zip(labels, impact_list, strict=True):
         if impact.bone not in motion.skeleton.names:

@@ -17,8 +17,8 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProp
 
 from ..core import quat
 from ..core.errors import ImpactError, ReactiveAnimError
-from ..core.roles import assign_roles
-from . import action_io, impacts, settings
+from ..core.roles import guess_roles
+from . import action_io, impacts, role_map, settings
 
 if TYPE_CHECKING:
     from bpy._typing.rna_enums import OperatorReturnItems  # fake-bpy-module's name for the result set
@@ -76,10 +76,8 @@ def default_bone(armature: bpy.types.Object, context: bpy.types.Context) -> str:
     assert isinstance(data, bpy.types.Armature)
     if data.bones.active is not None:
         return data.bones.active.name
-    try:
-        return assign_roles(action_io.armature_skeleton(armature)).get("chest", data.bones[0].name)
-    except ReactiveAnimError:
-        return data.bones[0].name if data.bones else ""
+    roles = guess_roles(action_io.armature_skeleton(armature), role_map.valid_overrides(armature))
+    return roles.get("chest", data.bones[0].name if data.bones else "")
 
 
 def _marker(context: bpy.types.Context, uid: str) -> bpy.types.TimelineMarker:

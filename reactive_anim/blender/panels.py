@@ -14,7 +14,7 @@ from typing import Any, cast
 
 import bpy
 
-from . import bake, bake_ops, impact_ops, impacts, operators, preview, settings, worker
+from . import bake, bake_ops, impact_ops, impacts, operators, preview, role_map, settings, worker
 
 
 def button(
@@ -202,6 +202,40 @@ class REACTIVE_ANIM_PT_bake(bpy.types.Panel):
         with_settings.prop(scene_settings, "model_path", placeholder="shipped classifier")
 
 
+class REACTIVE_ANIM_PT_roles(bpy.types.Panel):
+    """Which bone plays each joint role, for rigs whose names are not recognised."""
+
+    bl_idname = "REACTIVE_ANIM_PT_roles"
+    bl_label = "Character Roles"
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Reactions"
+    bl_parent_id = REACTIVE_ANIM_PT_main.bl_idname
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return settings.panel_character(context) is not None
+
+    def draw(self, context: bpy.types.Context) -> None:
+        layout = self.layout
+        character = settings.panel_character(context)
+        assert character is not None
+        status = role_map.check_roles(character)
+        layout.label(text=status, icon="CHECKMARK" if status.startswith("Every") else "ERROR")
+        on = {"armature_name": character.name}
+        row = layout.row(align=True)
+        button(row, role_map.REACTIVE_ANIM_OT_detect_roles, icon="VIEWZOOM", targets=on)
+        row.operator_menu_enum(role_map.REACTIVE_ANIM_OT_role_preset.bl_idname, "preset", text="Preset")
+        button(row, role_map.REACTIVE_ANIM_OT_clear_roles, text="", icon="X", targets=on)
+        data = character.data
+        if not isinstance(data, bpy.types.Armature):
+            return
+        column = layout.column(align=True)
+        for entry in role_map.role_entries(character):
+            column.prop_search(entry, "bone", data, "bones", text=entry.role.replace("_", " "))
+
+
 def _draw_rows(layout: bpy.types.UILayout, title: str, rows_json: str) -> None:
     """Per impact: marker and frame, class and how it was chosen, clip and cost."""
     if not rows_json:
@@ -228,6 +262,9 @@ MENU_OPERATORS = (
     bake_ops.REACTIVE_ANIM_OT_discard_preview,
     bake_ops.REACTIVE_ANIM_OT_bake,
     bake_ops.REACTIVE_ANIM_OT_clear_bake,
+    role_map.REACTIVE_ANIM_OT_detect_roles,
+    role_map.REACTIVE_ANIM_OT_role_preset,
+    role_map.REACTIVE_ANIM_OT_clear_roles,
 )
 
 

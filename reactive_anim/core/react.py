@@ -34,6 +34,7 @@ import numpy as np
 
 from .balance import RootAssist
 from .blend import blend, fade_weights, place
+from .casting import Casting
 from .classes import CLASS_SLUGS
 from .errors import Cancelled, ImpactError, LibraryError, SkeletonError
 from .impact import Impact
@@ -48,7 +49,6 @@ from .window import (
     Query,
     frame_features,
     joint_weights,
-    query_from_motion,
     window_costs,
     yaw_rotate,
 )
@@ -164,28 +164,31 @@ def react(
     source: Motion | None = None,
     ragdoll: Ragdoll | None = None,
     workspace: Workspace | None = None,
+    casting: Casting | None = None,
 ) -> Reaction:
     """Steps 2-6 for one impact on `motion`; Reaction.motion is the whole motion with the reaction.
 
     source: the motion to resume after the reaction (default `motion`; a bake passes the original).
-    ragdoll, workspace: reuse across impacts (default: built for the motion's skeleton).
+    ragdoll, workspace, casting: reuse across impacts (default: built for the motion's skeleton;
+    casting.py when the library's clips are on another skeleton).
     """
     settings = settings or ReactionSettings()
     clock = _Clock()
     _check_impact(motion, impact)
     ragdoll = ragdoll or character_ragdoll(motion, settings.profile)
     workspace = workspace or Workspace(ragdoll)
+    casting = casting or Casting.between(motion.skeleton, ragdoll.roles, library)
     bc = simulate_impact(ragdoll, motion, impact, window=settings.reaction_window, workspace=workspace)
     frame_c = int(bc.frames[-1])
     before = _join(motion.slice(0, int(bc.frames[0])), bc.motion)
     clock.lap("bc")
     probabilities = _probabilities(classifier, motion, bc, ragdoll)
     clock.lap("classify")
-    query = _query_ending_at(before, frame_c, library, impact, ragdoll.roles)
+    query = _query_ending_at(before, frame_c, casting, impact)
     match = _search(library, query, impact, probabilities, settings)
     clock.lap("search")
     frame_e = round((match.jump_frame + library.window - 1) / library.fps * motion.fps)
-    clip_raw = library.clip_motion(match.clip, motion.fps)
+    clip_raw = casting.clip(match.clip, motion.fps)
     at_c = before.slice(frame_c, frame_c + 1)
     placement = _alignment(at_c, clip_raw.slice(frame_e, frame_e + 1), ragdoll.roles)
     clip = place(clip_raw, *placement)
@@ -198,7 +201,7 @@ def react(
     transition = blend(cd.motion, clip_ef, fade_weights(steps + 1))
     out = _join(before.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, clip.num_frames))
     clock.lap("blend")
-    out, chained = _chain(out, library, match, ragdoll.roles, settings)
+    out, chained = _chain(out, casting, match, ragdoll.roles, settings)
     end_frame = out.num_frames - 1
     standing = chained is not None or not match.reaction_class.startswith("fall_")
     window = max(2, round(library.window * motion.fps / library.fps)) if settings.resume and standing else 0
@@ -251,6 +254,7 @@ def bake_reactions(
         _check_impact(motion, impact)
     ragdoll = character_ragdoll(motion, settings.profile)
     workspace = Workspace(ragdoll)
+    casting = Casting.between(motion.skeleton, ragdoll.roles, library)
     current, reactions = motion, []
     for k, impact in enumerate(ordered):
         if cancel is not None and cancel():
@@ -258,7 +262,7 @@ def bake_reactions(
         if progress is not None:
             progress(k, len(ordered), "react")
         reaction = react(current, impact, library, classifier, settings, source=motion, ragdoll=ragdoll,
-                         workspace=workspace)  # fmt: skip
+                         workspace=workspace, casting=casting)  # fmt: skip
         current = reaction.motion if reaction.motion is not None else current
         reactions.append(replace(reaction, motion=None))
     if progress is not None:
@@ -295,15 +299,16 @@ def _probabilities(
     return None if classifier is None else np.asarray(classifier.classify(before, bc, ragdoll), dtype=float)
 
 
-def _query_ending_at(before: Motion, frame_c: int, library: Library, impact: Impact, roles: dict[str, str]) -> Query:
+def _query_ending_at(before: Motion, frame_c: int, casting: Casting, impact: Impact) -> Query:
     """The library-rate window whose last frame is C, from the motion with BC in it."""
+    library = casting.library
     start = frame_c - (library.window - 1) * before.fps / library.fps
     if start < 0:
         raise ImpactError(
             f"impact at frame {impact.frame:g} on '{impact.bone}' is too early: the search needs "
             f"{(library.window - 1) / library.fps:.2f} s of motion before the end of the reaction window"
         )
-    return query_from_motion(before, start, library.window, library.fps, roles)
+    return casting.query(before, start)
 
 
 def _search(
@@ -326,14 +331,14 @@ def _search(
 
 
 def _chain(
-    out: Motion, library: Library, match: Match, roles: dict[str, str], settings: ReactionSettings
+    out: Motion, casting: Casting, match: Match, roles: dict[str, str], settings: ReactionSettings
 ) -> tuple[Motion, str | None]:
     """The clip's `next` (a get-up) placed where the reaction ends and faded in."""
-    name = library.clips[match.clip_index].next
+    name = casting.library.clips[match.clip_index].next
     if name is None:
         return out, None
     fps = out.fps
-    follow = library.clip_motion(name, fps)
+    follow = casting.clip(name, fps)
     yaw, offset = _alignment(out.slice(out.num_frames - 1, out.num_frames), follow.slice(0, 1), roles)
     follow = place(follow, yaw, offset)
     overlap = max(1, min(round(settings.chain_blend * fps), follow.num_frames - 1, out.num_frames - 1))

@@ -58,8 +58,8 @@ LOWER_BODY = {"pelvis", *(f"{part}_{s}" for part in ("hip", "knee", "ankle", "to
 
 # A source foot is planted where its ankle is within this of its lowest height in the clip and it
 # moves slower than this; the IK eases in and out over EASE_FRAMES frames.
-PLANT_HEIGHT = 0.05  # metres, scaled by the source's leg length / 0.9 m
-PLANT_SPEED = 0.35  # metres per second, likewise scaled
+PLANT_HEIGHT = 0.03  # metres, scaled by the source's leg length / 0.9 m
+PLANT_SPEED = 0.2  # metres per second, likewise scaled (the sample walk's plants then slide 3 mm)
 EASE_FRAMES = 4
 MIN_BONE = 1e-3  # metres: a shorter bone has no usable direction
 
@@ -350,13 +350,14 @@ def _plant_feet(mapping: RetargetMap, motion: Motion, source: tuple[np.ndarray, 
     sink = float(np.max(np.concatenate([over[s][down[s]] for s in down])))
     root_pos = out.root_pos - np.array([0.0, 0.0, sink])
     pos[..., 2] -= sink
-    for _, ankle_t, s in feet:
+    for ankle_s, ankle_t, s in feet:
         if not down[s].any():
             continue
         goal = pos[:, ankle_t].copy()
         goal[:, 2] -= over[s] - sink
+        goal = _planted_track(goal, source[0][:, ankle_s] * mapping.scale, down[s])
         joints = (target_roles[f"hip_{s}"], target_roles[f"knee_{s}"], ankle_t)
-        _two_bone_ik(mapping.target, pos, glob, joints, _held_in_place(goal, down[s]), _eased(down[s]))
+        _two_bone_ik(mapping.target, pos, glob, joints, goal, _eased(down[s]))
     return Motion(skeleton=out.skeleton, fps=out.fps, root_pos=root_pos, local_rot=_locals(mapping.target, glob))
 
 
@@ -370,18 +371,17 @@ def lowest_foot_point(skeleton: Skeleton, ankle: int, positions: np.ndarray, rot
     return np.min(heights, axis=0)
 
 
-def _held_in_place(goal: np.ndarray, down: np.ndarray) -> np.ndarray:
-    """Within each planted run, the goal's ground position stays where the run began."""
-    held = goal.copy()
+def _planted_track(goal: np.ndarray, source: np.ndarray, down: np.ndarray) -> np.ndarray:
+    """Within each planted run the goal's ground position moves only as the (scaled) source ankle
+    does from where the run began: a planted source foot stays put, and so does the target's, even
+    where the proportions would have carried it along."""
+    tracked = goal.copy()
     start = None
     for t, on in enumerate(down):
-        if on and start is None:
-            start = t
-        elif not on:
-            start = None
+        start = (t if start is None else start) if on else None
         if start is not None:
-            held[t, :2] = goal[start, :2]
-    return held
+            tracked[t, :2] = goal[start, :2] + source[t, :2] - source[start, :2]
+    return tracked
 
 
 def _eased(down: np.ndarray) -> np.ndarray:

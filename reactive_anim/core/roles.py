@@ -352,3 +352,119 @@ def apply_roles(skeleton: Skeleton, overrides: dict[str, str] | None = None) -> 
     """Assign roles and store them in `skeleton.roles`, where the ragdoll and search read them."""
     skeleton.roles = assign_roles(skeleton, overrides)
     return skeleton.roles
+
+
+def guess_roles(skeleton: Skeleton, overrides: dict[str, str] | None = None) -> dict[str, str]:
+    """What assign_roles finds, without requiring every role or checking them: where a role editor
+    starts from on a rig whose names are only partly recognised. Overrides win, as there."""
+    roles = _checked_overrides(skeleton, overrides)
+    try:
+        _find_limbs(skeleton, roles)
+        _find_torso(skeleton, roles)
+    except SkeletonError:
+        pass  # keep what was found before the part that could not be read
+    return {role: skeleton.names[roles[role]] for role in ALL_ROLES if role in roles}
+
+
+def _rig(centre: tuple[str, ...], limbs: dict[str, str], sides: tuple[str, str]) -> dict[str, str]:
+    """A rig's role table: the centre joints in CENTRE_ROLES order, limb names with '{}' for the side."""
+    table = dict(zip(CENTRE_ROLES, centre, strict=True))
+    for side, word in zip(SIDES, sides, strict=True):
+        table |= {f"{part}_{side}": name.format(word) for part, name in limbs.items()}
+    return table
+
+
+# Role tables of common rigs (bone names as each tool writes them): a preset for the role editor
+# when the names are there but the hierarchy confuses the search (extra helper bones, a split spine).
+RIG_PRESETS: dict[str, dict[str, str]] = {
+    "mixamo": _rig(
+        (
+            "mixamorig:Hips",
+            "mixamorig:Spine",
+            "mixamorig:Spine1",
+            "mixamorig:Spine2",
+            "mixamorig:Neck",
+            "mixamorig:Head",
+        ),
+        {
+            "hip": "mixamorig:{}UpLeg",
+            "knee": "mixamorig:{}Leg",
+            "ankle": "mixamorig:{}Foot",
+            "toe": "mixamorig:{}ToeBase",
+            "clavicle": "mixamorig:{}Shoulder",
+            "shoulder": "mixamorig:{}Arm",
+            "elbow": "mixamorig:{}ForeArm",
+            "wrist": "mixamorig:{}Hand",
+        },
+        ("Left", "Right"),
+    ),
+    "rigify": _rig(
+        ("DEF-spine", "DEF-spine.001", "DEF-spine.002", "DEF-spine.003", "DEF-spine.004", "DEF-spine.006"),
+        {
+            "hip": "DEF-thigh.{}",
+            "knee": "DEF-shin.{}",
+            "ankle": "DEF-foot.{}",
+            "toe": "DEF-toe.{}",
+            "clavicle": "DEF-shoulder.{}",
+            "shoulder": "DEF-upper_arm.{}",
+            "elbow": "DEF-forearm.{}",
+            "wrist": "DEF-hand.{}",
+        },
+        ("L", "R"),
+    ),
+    "cmu": _rig(
+        ("Hips", "LowerBack", "Spine", "Spine", "Neck", "Head"),  # Spine1 sits at the neck: the chest is Spine
+        {
+            "hip": "{}UpLeg",
+            "knee": "{}Leg",
+            "ankle": "{}Foot",
+            "toe": "{}ToeBase",
+            "clavicle": "{}Shoulder",
+            "shoulder": "{}Arm",
+            "elbow": "{}ForeArm",
+            "wrist": "{}Hand",
+        },
+        ("Left", "Right"),
+    ),
+    "bandai_namco": _rig(
+        ("Hips", "Spine", "Chest", "Chest", "Neck", "Head"),
+        {
+            "hip": "UpperLeg_{}",
+            "knee": "LowerLeg_{}",
+            "ankle": "Foot_{}",
+            "toe": "Toes_{}",
+            "clavicle": "Shoulder_{}",
+            "shoulder": "UpperArm_{}",
+            "elbow": "LowerArm_{}",
+            "wrist": "Hand_{}",
+        },
+        ("L", "R"),
+    ),
+    "sample": _rig(
+        ("pelvis", "spine", "spine.001", "chest", "neck", "head"),
+        {
+            "hip": "thigh.{}",
+            "knee": "shin.{}",
+            "ankle": "foot.{}",
+            "toe": "toe.{}",
+            "clavicle": "shoulder.{}",
+            "shoulder": "upper_arm.{}",
+            "elbow": "forearm.{}",
+            "wrist": "hand.{}",
+        },
+        ("L", "R"),
+    ),
+}
+
+
+def preset_roles(preset: str, names: list[str]) -> dict[str, str]:
+    """The preset's roles whose bone the rig has (a namespace prefix such as 'mixamorig1:' ignored)."""
+    if preset not in RIG_PRESETS:
+        raise SkeletonError(f"unknown rig preset '{preset}'; presets are: {', '.join(RIG_PRESETS)}")
+    bare = {_NAMESPACE.sub("", name): name for name in names}
+    found = {}
+    for role, bone in RIG_PRESETS[preset].items():
+        name = bone if bone in names else bare.get(_NAMESPACE.sub("", bone))
+        if name is not None:
+            found[role] = name
+    return found

@@ -172,6 +172,9 @@ POLL_MESSAGES = [
     ("accept_preview", "There is no preview to accept: click Preview first"),
     ("discard_preview", "There is no preview to discard"),
     ("clear_bake", "There are no baked reactions to clear"),
+    ("detect_roles", "There is no armature in this file: import a BVH first"),
+    ("role_preset", "There is no armature in this file: import a BVH first"),
+    ("clear_roles", "There is no armature in this file: import a BVH first"),
 ]
 
 

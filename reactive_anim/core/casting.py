@@ -1,0 +1,73 @@
+"""A character on another skeleton than the library's clips (issue: "any character").
+
+The search compares joint rotations and positions, which mean the same only on one skeleton; so
+the character's query window is retargeted onto the library's skeleton (the first clip's) before
+the search, and each clip the search picks (and each get-up chained after it) is retargeted onto
+the character before the transition tracks it. The ragdoll stays the character's own, so the
+physics matches the body that is hit. When the skeletons are the same nothing is converted.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .library import Library
+from .retarget import RetargetMap, retarget, retarget_map
+from .roles import assign_roles
+from .skeleton import Motion, Skeleton
+from .window import Query, query_from_motion
+
+
+@dataclass
+class Casting:
+    """How one character's motion meets one library: retarget maps both ways, clips kept once
+    retargeted (a bake uses a clip for several impacts)."""
+
+    character: Skeleton
+    roles: dict[str, str]
+    library: Library
+    reference: Skeleton  # the library's skeleton (its first clip's)
+    _maps: dict[tuple[str, ...], RetargetMap] = field(default_factory=dict)
+    _clips: dict[tuple[str, float], Motion] = field(default_factory=dict)
+
+    @classmethod
+    def between(cls, character: Skeleton, roles: dict[str, str], library: Library) -> Casting:
+        reference = library.clip_motion(library.clips[0].name, library.fps).skeleton
+        return cls(character, roles, library, reference)
+
+    @property
+    def same_skeleton(self) -> bool:
+        return self.reference.names == self.character.names
+
+    def query(self, before: Motion, start: float) -> Query:
+        """The library-rate window from `start` (before's frames), on the library's skeleton."""
+        library = self.library
+        if self.same_skeleton:
+            return query_from_motion(before, start, library.window, library.fps, self.roles)
+        first = int(np.floor(start))
+        last = min(before.num_frames, int(np.ceil(start + (library.window - 1) * before.fps / library.fps)) + 2)
+        moved = retarget(before.slice(first, last), self._map(self.character, self.reference), fix_feet=False)
+        return query_from_motion(moved, start - first, library.window, library.fps, self._roles(self.reference))
+
+    def clip(self, name: str, fps: float) -> Motion:
+        """A library clip at `fps`, played by the character (its feet held where the clip's are planted)."""
+        key = (name, float(fps))
+        if key not in self._clips:
+            motion = self.library.clip_motion(name, fps)
+            if motion.skeleton.names != self.character.names:
+                motion = retarget(motion, self._map(motion.skeleton, self.character))
+            self._clips[key] = motion
+        return self._clips[key]
+
+    def _map(self, source: Skeleton, target: Skeleton) -> RetargetMap:
+        key = (*source.names, "->", *target.names)
+        if key not in self._maps:
+            self._maps[key] = retarget_map(source, target, self._roles(source), self._roles(target))
+        return self._maps[key]
+
+    def _roles(self, skeleton: Skeleton) -> dict[str, str]:
+        if skeleton.names == self.character.names:
+            return self.roles
+        return skeleton.roles or assign_roles(skeleton)

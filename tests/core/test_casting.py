@@ -1,0 +1,83 @@
+"""A character on another skeleton than the library's (core/casting.py, wired into react.py): the
+query is retargeted onto the library's skeleton, the chosen clip onto the character's."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from reactive_anim.core import quat, retarget
+from reactive_anim.core.casting import Casting
+from reactive_anim.core.classifier import load_classifier
+from reactive_anim.core.impact import Impact
+from reactive_anim.core.library import load_library
+from reactive_anim.core.react import character_ragdoll, react
+from reactive_anim.core.roles import assign_roles
+from tests.core.test_retarget import WALK, t_pose_variant
+from tests.support.mocap import REPO
+
+PUSHES = [
+    (50, "chest", (0.0, -1.0, 0.0), 120.0),
+    (90, "pelvis", (1.0, 0.0, 0.0), 250.0),
+    (130, "head", (0.0, 1.0, 0.0), 80.0),
+]
+
+
+@pytest.fixture(scope="module")
+def library(tmp_path_factory):
+    return load_library(REPO / "sample_clips", cache_dir=tmp_path_factory.mktemp("library_cache"))
+
+
+@pytest.fixture(scope="module")
+def classifier():
+    return load_classifier(REPO / "reactive_anim" / "models" / "reaction_classifier.onnx")
+
+
+def _renamed():
+    """The sample skeleton under other names (its roles given, as the role editor would): the
+    same body, so everything but the names must come out as on the sample walk."""
+    names = [f"Bone{k:02d}" for k in range(WALK.skeleton.num_joints)]
+    roles = {role: names[WALK.skeleton.index(n)] for role, n in assign_roles(WALK.skeleton).items()}
+    skeleton = replace(WALK.skeleton, names=names, roles=roles)
+    return retarget.retarget(WALK, retarget.retarget_map(WALK.skeleton, skeleton)), roles
+
+
+def test_on_the_librarys_skeleton_nothing_is_converted(library):
+    casting = Casting.between(WALK.skeleton, assign_roles(WALK.skeleton), library)
+    assert casting.same_skeleton
+    assert casting.clip("step_back_1.bvh", 60.0) is library.clip_motion("step_back_1.bvh", 60.0)
+
+
+@pytest.mark.parametrize("push", PUSHES, ids=[f"{p[1]}-{p[3]:g}" for p in PUSHES])
+def test_the_same_push_on_a_renamed_skeleton_picks_the_same_class_clip_and_frame(library, classifier, push):
+    renamed, roles = _renamed()
+    frame, role, direction, strength = push
+    here = react(WALK, Impact(frame, role, direction, strength), library, classifier)
+    there = react(renamed, Impact(frame, roles[role], direction, strength), library, classifier)
+
+    assert (there.reaction_class, there.clip, there.jump_frame) == (here.reaction_class, here.clip, here.jump_frame)
+    assert there.cost == pytest.approx(here.cost, abs=1e-3)
+    assert there.motion is not None and here.motion is not None
+    assert there.motion.skeleton.names == renamed.skeleton.names
+    positions = np.abs(there.motion.global_positions() - here.motion.global_positions())
+    assert positions.max() < 0.005  # retargeting the clip onto the same body changes it by IK round-off
+
+
+def test_a_t_pose_character_reacts_with_a_clip_recorded_arms_down(library, classifier):
+    target = t_pose_variant()
+    mapping = retarget.retarget_map(WALK.skeleton, target)
+    character = retarget.retarget(WALK, mapping)
+    reaction = react(character, Impact(60, "chest", (0.0, -1.0, 0.0), 120.0), library, classifier)
+
+    assert reaction.reaction_class.startswith("step") and reaction.motion is not None
+    out = reaction.motion
+    assert out.skeleton.names == target.names
+    # the clip plays on the character: its arms hang as the clip's do, not out in its T-pose rest
+    pos = out.global_positions()[reaction.frame_f + 5]
+    upper, lower = target.index("upper_arm.L"), target.index("forearm.L")
+    assert (pos[lower] - pos[upper])[2] < -0.2
+    ragdoll = character_ragdoll(character)
+    assert ragdoll.skeleton.names == target.names  # the physics is the character's own body
+    assert np.isfinite(quat.normalize(out.local_rot)).all()
