@@ -5,6 +5,8 @@ the character's query window is retargeted onto the library's skeleton (the firs
 the search, and each clip the search picks (and each get-up chained after it) is retargeted onto
 the character before the transition tracks it. The ragdoll stays the character's own, so the
 physics matches the body that is hit. When the skeletons are the same nothing is converted.
+Skeletons are lined up at their rest poses, or at the first frame of a motion on them (the
+character's, or the clip's) where the rest pose is no standing body, as in some files (retarget_map).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .library import Library
-from .retarget import RetargetMap, retarget, retarget_map
+from .retarget import Pose, RetargetMap, reference_pose, retarget, retarget_map
 from .roles import assign_roles
 from .skeleton import Motion, Skeleton
 from .window import Query, query_from_motion
@@ -29,13 +31,17 @@ class Casting:
     roles: dict[str, str]
     library: Library
     reference: Skeleton  # the library's skeleton (its first clip's)
+    _poses: dict[tuple[str, ...], Pose] = field(default_factory=dict)  # skeleton names -> pose it is lined up at
     _maps: dict[tuple[str, ...], RetargetMap] = field(default_factory=dict)
     _clips: dict[tuple[str, float], Motion] = field(default_factory=dict)
 
     @classmethod
-    def between(cls, character: Skeleton, roles: dict[str, str], library: Library) -> Casting:
-        reference = library.clip_motion(library.clips[0].name, library.fps).skeleton
-        return cls(character, roles, library, reference)
+    def between(cls, character: Motion, roles: dict[str, str], library: Library) -> Casting:
+        first = library.clip_motion(library.clips[0].name, library.fps)
+        casting = cls(character.skeleton, roles, library, first.skeleton)
+        casting._poses[tuple(first.skeleton.names)] = reference_pose(first, casting._roles(first.skeleton))
+        casting._poses.setdefault(tuple(character.skeleton.names), reference_pose(character, roles))
+        return casting
 
     @property
     def same_skeleton(self) -> bool:
@@ -57,6 +63,9 @@ class Casting:
         if key not in self._clips:
             motion = self.library.clip_motion(name, fps)
             if motion.skeleton.names != self.character.names:
+                self._poses.setdefault(
+                    tuple(motion.skeleton.names), reference_pose(motion, self._roles(motion.skeleton))
+                )
                 motion = retarget(motion, self._map(motion.skeleton, self.character))
             self._clips[key] = motion
         return self._clips[key]
@@ -64,7 +73,10 @@ class Casting:
     def _map(self, source: Skeleton, target: Skeleton) -> RetargetMap:
         key = (*source.names, "->", *target.names)
         if key not in self._maps:
-            self._maps[key] = retarget_map(source, target, self._roles(source), self._roles(target))
+            self._maps[key] = retarget_map(
+                source, target, self._roles(source), self._roles(target),
+                self._poses[tuple(source.names)], self._poses[tuple(target.names)],
+            )  # fmt: skip
         return self._maps[key]
 
     def _roles(self, skeleton: Skeleton) -> dict[str, str]:

@@ -177,7 +177,7 @@ def react(
     _check_impact(motion, impact)
     ragdoll = ragdoll or character_ragdoll(motion, settings.profile)
     workspace = workspace or Workspace(ragdoll)
-    casting = casting or Casting.between(motion.skeleton, ragdoll.roles, library)
+    casting = casting or Casting.between(source or motion, ragdoll.roles, library)
     bc = simulate_impact(ragdoll, motion, impact, window=settings.reaction_window, workspace=workspace)
     frame_c = int(bc.frames[-1])
     before = _join(motion.slice(0, int(bc.frames[0])), bc.motion)
@@ -187,8 +187,10 @@ def react(
     query = _query_ending_at(before, frame_c, casting, impact)
     match = _search(library, query, impact, probabilities, settings)
     clock.lap("search")
-    frame_e = round((match.jump_frame + library.window - 1) / library.fps * motion.fps)
     clip_raw = casting.clip(match.clip, motion.fps)
+    # E: the window's last frame on the character's clock (a clip resampled to a frame rate such as
+    # 59.9988 may end a frame short of the rounded time)
+    frame_e = min(round((match.jump_frame + library.window - 1) / library.fps * motion.fps), clip_raw.num_frames - 1)
     at_c = before.slice(frame_c, frame_c + 1)
     placement = _alignment(at_c, clip_raw.slice(frame_e, frame_e + 1), ragdoll.roles)
     clip = place(clip_raw, *placement)
@@ -254,7 +256,7 @@ def bake_reactions(
         _check_impact(motion, impact)
     ragdoll = character_ragdoll(motion, settings.profile)
     workspace = Workspace(ragdoll)
-    casting = Casting.between(motion.skeleton, ragdoll.roles, library)
+    casting = Casting.between(motion, ragdoll.roles, library)
     current, reactions = motion, []
     for k, impact in enumerate(ordered):
         if cancel is not None and cancel():

@@ -8,11 +8,12 @@ differ (arms out or down, other proportions, extra spine joints).
 What is transferred, per role joint (roles.py): the rotation the joint makes away from a common
 reference, not away from its own rest pose. In the core's convention the rest pose has identity
 rotations, so a joint's global rotation G is its rotation away from rest, in world axes. For each
-role the rest alignment Q (target rest frame -> source rest frame) turns the target's bone onto the
-source's bone in the rest pose: its primary axis is the bone (from the role joint to the next role
-joint down the chain), its secondary axis the body's left-right line (hips for the legs and
-pelvis, shoulders above). So G_target = G_source Q: in the rest pose a T-pose arm maps onto an
-A-pose arm, and from there every turn carries over. Each role bone is then swung onto the
+role the alignment Q turns the target's bone onto the source's where both skeletons stand in a
+reference pose (their rest poses, or a frame of a motion for a skeleton whose rest is no standing
+body): its primary axis is the bone (from the role joint to the next role joint down the chain),
+its secondary axis a body axis square to it (the left-right line for spine, legs and feet, the
+front for the arms). So G_target = G_source Q: a T-pose arm maps onto an arms-down arm, and from
+there every turn carries over. Each role bone is then swung onto the
 source bone's actual direction (which also follows any extra joints the source bends along the
 way), so bone directions match the source's exactly; twist comes from the source's joint. The
 pelvis, the root body, takes the source's turn as it is.
@@ -54,6 +55,7 @@ NEXT_ROLE = {
     **{f"elbow_{s}": f"wrist_{s}" for s in SIDES},
     **{f"wrist_{s}": None for s in SIDES},
 }
+ARM_PARTS = ("clavicle", "shoulder", "elbow", "wrist")
 LOWER_BODY = {"pelvis", *(f"{part}_{s}" for part in ("hip", "knee", "ankle", "toe") for s in SIDES)}
 
 # A source foot is planted where its ankle is within this of its lowest height in the clip and it
@@ -80,18 +82,58 @@ class RetargetMap:
     between: list[list[tuple[int, float]]]  # per role: target joints on its bone without a role, with shares
 
 
+Pose = tuple[np.ndarray, np.ndarray]  # one frame's global positions (J, 3) and rotations (J, 4)
+
+
+def rest_pose(skeleton: Skeleton) -> Pose:
+    return skeleton.rest_positions(), quat.identity((skeleton.num_joints,))
+
+
+def motion_pose(motion: Motion, frame: int = 0) -> Pose:
+    """A frame of a motion as a reference pose (see retarget_map)."""
+    pos, rot = motion.global_transforms()
+    return pos[frame], rot[frame]
+
+
+def standing_rest(skeleton: Skeleton, roles: dict[str, str]) -> bool:
+    """The rest pose is a standing body (neck over the pelvis, both legs straight down), so it can
+    line up bones with another skeleton's; the arms may be anywhere."""
+    rest = skeleton.rest_positions()
+
+    def down(top: str, bottom: str) -> float:
+        v = rest[skeleton.index(roles[bottom])] - rest[skeleton.index(roles[top])]
+        return -v[2] / max(float(np.linalg.norm(v)), 1e-12)
+
+    legs = [down(f"hip_{s}", f"ankle_{s}") for s in SIDES]
+    return -down("pelvis", "neck") > 0.9 and min(legs) > 0.9
+
+
+def reference_pose(motion: Motion, roles: dict[str, str]) -> Pose:
+    """Where a motion's skeleton is lined up with another: its rest pose if that is a standing body
+    (exact between skeletons of one body), else the motion's first frame."""
+    return rest_pose(motion.skeleton) if standing_rest(motion.skeleton, roles) else motion_pose(motion)
+
+
 def retarget_map(
     source: Skeleton,
     target: Skeleton,
     source_roles: dict[str, str] | None = None,
     target_roles: dict[str, str] | None = None,
+    source_pose: Pose | None = None,
+    target_pose: Pose | None = None,
 ) -> RetargetMap:
-    """The map from `source` to `target`; roles default to the skeletons' own (or found by name)."""
+    """The map from `source` to `target`; roles default to the skeletons' own (or found by name).
+
+    The poses (default: the rest poses) are where the two skeletons are lined up bone by bone: each
+    must be a natural standing posture, since a bone's twist is read from it against the body's
+    left-right line. A rest pose can be anything (a file may rest with its legs up and turn them
+    down in every frame), so for a skeleton whose rest is not a standing body, pass a frame of its
+    motion (motion_pose)."""
     src_roles = _distinct(source, source_roles or source.roles or assign_roles(source))
     tgt_roles = _distinct(target, target_roles or target.roles or assign_roles(target))
     shared = [r for r in NEXT_ROLE if r in src_roles and r in tgt_roles]
     shared.sort(key=lambda r: target.index(tgt_roles[r]))
-    src_pos, tgt_pos = source.rest_positions(), target.rest_positions()
+    src_pose, tgt_pose = source_pose or rest_pose(source), target_pose or rest_pose(target)
     src_j = np.array([source.index(src_roles[r]) for r in shared])
     tgt_j = np.array([target.index(tgt_roles[r]) for r in shared])
     ends = [_next_role(r, shared, ((source, src_roles), (target, tgt_roles))) for r in shared]
@@ -99,13 +141,10 @@ def retarget_map(
     tgt_child = np.array([_bone_end(target, tgt_roles, r, nxt) for r, nxt in zip(shared, ends, strict=True)])
     align = np.empty((len(shared), 4))
     for k, role in enumerate(shared):
-        side = _lateral_pair(role)
-        align[k] = _rest_alignment(
-            _bone_direction(target, tgt_pos, tgt_j[k], tgt_child[k]),
-            _lateral(target, tgt_roles, tgt_pos, side),
-            _bone_direction(source, src_pos, src_j[k], src_child[k]),
-            _lateral(source, src_roles, src_pos, side),
-        )
+        src_frame = _bone_frame(source, src_roles, src_pose, role, src_j[k], src_child[k])
+        tgt_frame = _bone_frame(target, tgt_roles, tgt_pose, role, tgt_j[k], tgt_child[k])
+        turn = quat.from_matrix(src_frame @ tgt_frame.T)  # target's bone frame onto the source's
+        align[k] = quat.mul(quat.mul(quat.conj(src_pose[1][src_j[k]]), turn), tgt_pose[1][tgt_j[k]])
     scale = leg_length(target, tgt_roles) / leg_length(source, src_roles)
     between = [_between(target, int(j), int(c), set(tgt_j.tolist())) for j, c in zip(tgt_j, tgt_child, strict=True)]
     return RetargetMap(source, target, shared, src_j, tgt_j, src_child, tgt_child, align, scale, between)
@@ -174,39 +213,36 @@ def _bone_end(skeleton: Skeleton, roles: dict[str, str], role: str, nxt: str | N
     return children[0] if children else -1
 
 
-def _bone_direction(skeleton: Skeleton, rest: np.ndarray, joint: int, child: int) -> np.ndarray:
-    """Unit rest direction of a bone; a bone without a child points along its end site, else up."""
-    vector = rest[child] - rest[joint] if child >= 0 else skeleton.end_sites.get(int(joint), np.array([0.0, 0, 1]))
-    norm = np.linalg.norm(vector)
-    return vector / norm if norm > 1e-9 else np.array([0.0, 0.0, 1.0])
+def _bone_frame(skeleton: Skeleton, roles: dict[str, str], pose: Pose, role: str, joint: int, child: int) -> np.ndarray:
+    """A role bone's frame in a pose (columns): along the bone, then toward a body axis square to
+    it in every natural pose: the body's left-right line for the spine, legs and feet (hips for the
+    lower body, shoulders above), its front for the arms, which hang down or stretch sideways."""
+    pos, rot = pose
+    if child >= 0:
+        along = pos[child] - pos[joint]
+    else:  # a bone without a child points along its end site, else up
+        along = quat.rotate(rot[joint], skeleton.end_sites.get(int(joint), np.array([0.0, 0.0, 1.0])))
+    left, right = (pos[skeleton.index(roles[r])] for r in _lateral_pair(role))
+    up = pos[skeleton.index(roles["neck"])] - pos[skeleton.index(roles["pelvis"])]
+    side = left - right
+    toward = np.cross(side, up) if role.split("_")[0] in ARM_PARTS else side
+    return _frame(along, toward, up)
 
 
 def _lateral_pair(role: str) -> tuple[str, str]:
     return ("hip_l", "hip_r") if role in LOWER_BODY else ("shoulder_l", "shoulder_r")
 
 
-def _lateral(skeleton: Skeleton, roles: dict[str, str], rest: np.ndarray, pair: tuple[str, str]) -> np.ndarray:
-    """The body's right-to-left line in the rest pose, from a pair of role joints."""
-    left, right = (rest[skeleton.index(roles[r])] for r in pair)
-    vector = left - right
-    return vector / max(float(np.linalg.norm(vector)), 1e-9)
-
-
-def _frame(primary: np.ndarray, secondary: np.ndarray) -> np.ndarray:
-    """Orthonormal frame (columns) with its first axis along `primary`, its second toward `secondary`."""
-    a = primary / np.linalg.norm(primary)
-    b = secondary - a * np.dot(a, secondary)
-    if np.linalg.norm(b) < 1e-6:  # the bone runs along the left-right line (an arm in T-pose)
-        b = np.array([0.0, 0.0, 1.0]) - a * a[2]
-        if np.linalg.norm(b) < 1e-6:
-            b = np.array([1.0, 0.0, 0.0]) - a * a[0]
-    b = b / np.linalg.norm(b)
-    return np.stack([a, b, np.cross(a, b)], axis=1)
-
-
-def _rest_alignment(t_bone: np.ndarray, t_side: np.ndarray, s_bone: np.ndarray, s_side: np.ndarray) -> np.ndarray:
-    """Q with Q t_bone = s_bone and Q's turn of t_side as close to s_side as the bones allow."""
-    return quat.from_matrix(_frame(s_bone, s_side) @ _frame(t_bone, t_side).T)
+def _frame(primary: np.ndarray, secondary: np.ndarray, fallback: np.ndarray) -> np.ndarray:
+    """Orthonormal frame (columns) with its first axis along `primary`, its second toward
+    `secondary`, or toward `fallback` where `secondary` runs along `primary`."""
+    a = primary / max(float(np.linalg.norm(primary)), 1e-12)
+    for toward in (secondary, fallback, np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])):
+        b = toward - a * np.dot(a, toward)
+        if np.linalg.norm(b) > 0.2 * max(float(np.linalg.norm(toward)), 1e-12):
+            b = b / np.linalg.norm(b)
+            return np.stack([a, b, np.cross(a, b)], axis=1)
+    raise SkeletonError("a bone's frame has no direction")  # unreachable: the last two are orthogonal
 
 
 def arc(u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -404,30 +440,31 @@ def _two_bone_ik(
     """Turn hip and knee (global rotations, in place) so the ankle reaches toward `goal` by `weight`;
     the knee bends in the plane it already bends in, the foot keeps its world orientation."""
     hip, knee, ankle = joints
-    for t in np.flatnonzero(weight > 0):
-        h, k, a = pos[t, hip], pos[t, knee], pos[t, ankle]
-        target = a + weight[t] * (goal[t] - a)
-        thigh, shin = np.linalg.norm(k - h), np.linalg.norm(a - k)
-        reach = np.clip(np.linalg.norm(target - h), abs(thigh - shin) + 1e-4, thigh + shin - 1e-4)
-        bend_axis = np.cross(h - k, a - k)
-        if np.linalg.norm(bend_axis) < 1e-9:  # a straight leg: bend forward, about the hips' line
-            bend_axis = quat.rotate(glob[t, hip], np.array([1.0, 0.0, 0.0]))
-        bend_axis = bend_axis / np.linalg.norm(bend_axis)
-        now = np.arccos(np.clip(np.dot(_unit(h - k), _unit(a - k)), -1.0, 1.0))
-        want = np.arccos(np.clip((thigh**2 + shin**2 - reach**2) / (2 * thigh * shin), -1.0, 1.0))
-        turn_knee = quat.from_axis_angle(bend_axis, want - now)  # opens the knee's angle by want - now
-        new_a = k + quat.rotate(turn_knee, a - k)
-        swing = arc(_unit(new_a - h), _unit(target - h))
-        foot = glob[t, ankle].copy()
-        chain = _path(skeleton, hip, ankle)  # ankle, ..., knee, ..., hip
-        shin_joints, thigh_joints = chain[1 : chain.index(knee) + 1], chain[chain.index(knee) + 1 :]
-        for j in shin_joints:
-            glob[t, j] = quat.mul(swing, quat.mul(turn_knee, glob[t, j]))
-        for j in thigh_joints:
-            glob[t, j] = quat.mul(swing, glob[t, j])
-        glob[t, ankle] = foot
-        pos[t, knee] = h + quat.rotate(swing, k - h)
-        pos[t, ankle] = h + quat.rotate(swing, new_a - h)
+    t = np.flatnonzero(weight > 0)
+    if not len(t):
+        return
+    h, k, a = pos[t, hip], pos[t, knee], pos[t, ankle]
+    target = a + weight[t, None] * (goal[t] - a)
+    thigh, shin = np.linalg.norm(k - h, axis=-1), np.linalg.norm(a - k, axis=-1)
+    reach = np.clip(np.linalg.norm(target - h, axis=-1), np.abs(thigh - shin) + 1e-4, thigh + shin - 1e-4)
+    bend_axis = np.cross(h - k, a - k)
+    straight = np.linalg.norm(bend_axis, axis=-1) < 1e-9  # a straight leg bends forward, about the hips' line
+    bend_axis[straight] = quat.rotate(glob[t[straight], hip], np.array([1.0, 0.0, 0.0]))
+    bend_axis = _unit(bend_axis)
+    now = np.arccos(np.clip(np.sum(_unit(h - k) * _unit(a - k), axis=-1), -1.0, 1.0))
+    want = np.arccos(np.clip((thigh**2 + shin**2 - reach**2) / (2 * thigh * shin), -1.0, 1.0))
+    turn_knee = quat.from_axis_angle(bend_axis, want - now)  # opens the knee's angle by want - now
+    new_a = k + quat.rotate(turn_knee, a - k)
+    swing = arc(_unit(new_a - h), _unit(target - h))
+    foot = glob[t, ankle].copy()
+    chain = _path(skeleton, hip, ankle)  # ankle, ..., knee, ..., hip
+    for j in chain[1 : chain.index(knee) + 1]:  # the shin's joints: bent, then swung
+        glob[t, j] = quat.mul(swing, quat.mul(turn_knee, glob[t, j]))
+    for j in chain[chain.index(knee) + 1 :]:  # the thigh's: swung
+        glob[t, j] = quat.mul(swing, glob[t, j])
+    glob[t, ankle] = foot
+    pos[t, knee] = h + quat.rotate(swing, k - h)
+    pos[t, ankle] = h + quat.rotate(swing, new_a - h)
 
 
 def _path(skeleton: Skeleton, top: int, bottom: int) -> list[int]:

@@ -368,7 +368,7 @@ def guess_roles(skeleton: Skeleton, overrides: dict[str, str] | None = None) -> 
 
 def _rig(centre: tuple[str, ...], limbs: dict[str, str], sides: tuple[str, str]) -> dict[str, str]:
     """A rig's role table: the centre joints in CENTRE_ROLES order, limb names with '{}' for the side."""
-    table = dict(zip(CENTRE_ROLES, centre, strict=True))
+    table: dict[str, str] = dict(zip(CENTRE_ROLES, centre, strict=True))
     for side, word in zip(SIDES, sides, strict=True):
         table |= {f"{part}_{side}": name.format(word) for part, name in limbs.items()}
     return table

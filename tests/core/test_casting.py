@@ -8,15 +8,16 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from reactive_anim.core import quat, retarget
+from reactive_anim.core import bvh, quat, retarget
 from reactive_anim.core.casting import Casting
 from reactive_anim.core.classifier import load_classifier
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.library import load_library
 from reactive_anim.core.react import character_ragdoll, react
 from reactive_anim.core.roles import assign_roles
-from tests.core.test_retarget import WALK, t_pose_variant
-from tests.support.mocap import REPO
+from reactive_anim.core.search import search
+from tests.support.mocap import REPO, require_mocap
+from tests.support.skeletons import WALK, t_pose_variant
 
 PUSHES = [
     (50, "chest", (0.0, -1.0, 0.0), 120.0),
@@ -45,7 +46,7 @@ def _renamed():
 
 
 def test_on_the_librarys_skeleton_nothing_is_converted(library):
-    casting = Casting.between(WALK.skeleton, assign_roles(WALK.skeleton), library)
+    casting = Casting.between(WALK, assign_roles(WALK.skeleton), library)
     assert casting.same_skeleton
     assert casting.clip("step_back_1.bvh", 60.0) is library.clip_motion("step_back_1.bvh", 60.0)
 
@@ -81,3 +82,26 @@ def test_a_t_pose_character_reacts_with_a_clip_recorded_arms_down(library, class
     ragdoll = character_ragdoll(character)
     assert ragdoll.skeleton.names == target.names  # the physics is the character's own body
     assert np.isfinite(quat.normalize(out.local_rot)).all()
+
+
+REAL_WALKS = ["cmu_iclone/002_01.bvh", "bandai_namco/dataset-1/dataset-1_walk_normal_001.bvh"]
+
+
+@pytest.mark.parametrize("relative", REAL_WALKS)
+def test_real_walks_of_other_skeletons_find_windows_as_close_as_the_sample_walk(library, relative):
+    """Both files rest in poses that are no standing body (legs up, legs apart): lined up at a rest
+    pose, their bones would turn by up to 180 degrees about themselves and every search cost would
+    be about 100. Lined up at their first frames, their walking windows are about as close to the
+    library's as the sample walk's (which the library's own generator made)."""
+    walk = bvh.read_bvh(require_mocap(relative))
+    roles = assign_roles(walk.skeleton)
+    casting = Casting.between(walk, roles, library)
+    assert not casting.same_skeleton
+    sample = Casting.between(WALK, assign_roles(WALK.skeleton), library)
+
+    def median_cost(cast: Casting, motion) -> float:
+        starts = np.linspace(motion.fps, motion.num_frames - motion.fps, 6)
+        return float(np.median([search(library, cast.query(motion, s)).cost for s in starts]))
+
+    theirs, ours = median_cost(casting, walk), median_cost(sample, WALK)
+    assert theirs < 2.5 * ours and theirs < 40.0, (theirs, ours)

@@ -6,8 +6,8 @@
 
 Groups: bvh (parse throughput), blender (import, read_motion, write_motion in bpy), sim (ragdoll
 build, step, BC and CD windows), search (the jump search against the reference), react (the
-reaction pipeline per impact and a 20-impact bake). Real mocap comes
-from ../shared/mocap (test and benchmark data only); a group that needs it is skipped with a note
+reaction pipeline per impact and a 20-impact bake), cast (search costs on other skeletons,
+retarget time). Real mocap comes from ../shared/mocap (test and benchmark data only); a group that needs it is skipped with a note
 where it is absent. Each timing is the best of several runs (the least disturbed by other work on
 the machine), with the run count printed beside it.
 """
@@ -19,6 +19,7 @@ from collections.abc import Callable
 
 from .blender import bench_blender
 from .bvh import bench_bvh
+from .casting import bench_casting
 from .common import print_table
 from .react import bench_react
 from .search import bench_search
@@ -30,6 +31,7 @@ GROUPS: dict[str, Callable[[], None]] = {
     "sim": bench_sim,
     "search": bench_search,
     "react": bench_react,
+    "cast": bench_casting,
 }
 
 
