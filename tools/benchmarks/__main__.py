@@ -7,9 +7,9 @@
 Groups: bvh (parse throughput), blender (import, read_motion, write_motion in bpy), sim (ragdoll
 build, step, BC and CD windows), search (the jump search against the reference), react (the
 reaction pipeline per impact and a 20-impact bake), cast (search costs on other skeletons,
-retarget time). Real mocap comes from ../shared/mocap (test and benchmark data only); a group that needs it is skipped with a note
-where it is absent. Each timing is the best of several runs (the least disturbed by other work on
-the machine), with the run count printed beside it.
+retarget time). Real mocap comes from ../shared/mocap (test and benchmark data only); a group
+that needs it is skipped with a note where it is absent. Each timing is the best of several runs
+(the least disturbed by other work on the machine), with the run count printed beside it.
 """
 
 from __future__ import annotations
