@@ -16,8 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .library import Library
-from .retarget import Pose, RetargetMap, reference_pose, retarget, retarget_map
-from .roles import assign_roles
+from .retarget import Pose, RetargetMap, lowest_foot_point, reference_pose, retarget, retarget_map
+from .roles import SIDES, assign_roles
 from .skeleton import Motion, Skeleton
 from .window import Query, query_from_motion
 
@@ -31,6 +31,7 @@ class Casting:
     roles: dict[str, str]
     library: Library
     reference: Skeleton  # the library's skeleton (its first clip's)
+    sole: float  # how high the character's lowest foot point is on the floor, in its own motion
     _poses: dict[tuple[str, ...], Pose] = field(default_factory=dict)  # skeleton names -> pose it is lined up at
     _maps: dict[tuple[str, ...], RetargetMap] = field(default_factory=dict)
     _clips: dict[tuple[str, float], Motion] = field(default_factory=dict)
@@ -38,7 +39,7 @@ class Casting:
     @classmethod
     def between(cls, character: Motion, roles: dict[str, str], library: Library) -> Casting:
         first = library.clip_motion(library.clips[0].name, library.fps)
-        casting = cls(character.skeleton, roles, library, first.skeleton)
+        casting = cls(character.skeleton, roles, library, first.skeleton, _sole(character, roles))
         casting._poses[tuple(first.skeleton.names)] = reference_pose(first, casting._roles(first.skeleton))
         casting._poses.setdefault(tuple(character.skeleton.names), reference_pose(character, roles))
         return casting
@@ -66,7 +67,7 @@ class Casting:
                 self._poses.setdefault(
                     tuple(motion.skeleton.names), reference_pose(motion, self._roles(motion.skeleton))
                 )
-                motion = retarget(motion, self._map(motion.skeleton, self.character))
+                motion = retarget(motion, self._map(motion.skeleton, self.character), sole=self.sole)
             self._clips[key] = motion
         return self._clips[key]
 
@@ -80,6 +81,15 @@ class Casting:
         return self._maps[key]
 
     def _roles(self, skeleton: Skeleton) -> dict[str, str]:
+        """The character's roles as given; another skeleton's own, or found by name."""
         if skeleton.names == self.character.names:
             return self.roles
         return skeleton.roles or assign_roles(skeleton)
+
+
+def _sole(motion: Motion, roles: dict[str, str]) -> float:
+    """The lowest any foot of the motion gets (toes, end sites): where its floor is for its feet.
+    A toe joint may sit centimetres over the real sole, and a file's floor anywhere."""
+    pos, rot = motion.global_transforms()
+    sk = motion.skeleton
+    return float(min(lowest_foot_point(sk, sk.index(roles[f"ankle_{s}"]), pos, rot).min() for s in SIDES))

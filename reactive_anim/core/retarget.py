@@ -264,12 +264,20 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
 
 
-def retarget(motion: Motion, mapping: RetargetMap, base: Motion | None = None, fix_feet: bool = True) -> Motion:
+def retarget(
+    motion: Motion,
+    mapping: RetargetMap,
+    base: Motion | None = None,
+    fix_feet: bool = True,
+    sole: float | None = None,
+) -> Motion:
     """`motion` (on mapping.source) played by mapping.target.
 
     base: the target's own motion (same frame count) whose joints without a role are kept (fingers,
     face); None keeps their rest pose. fix_feet: hold the target's feet where the source's are
-    planted (see the module docstring).
+    planted (see the module docstring). sole: how high the target's lowest foot point stands when
+    its foot is on the floor (files differ: a toe joint 4 cm up, an end site at the sole); default
+    the source's, scaled.
     """
     if motion.skeleton.names != mapping.source.names:
         raise SkeletonError("the motion's skeleton is not the retarget map's source skeleton")
@@ -283,7 +291,7 @@ def retarget(motion: Motion, mapping: RetargetMap, base: Motion | None = None, f
     root_pos = _root_positions(mapping, motion, glob, src_pos)
     out = Motion(skeleton=target, fps=motion.fps, root_pos=root_pos, local_rot=_locals(target, glob))
     if fix_feet:
-        out = _plant_feet(mapping, motion, (src_pos, src_rot), out)
+        out = _plant_feet(mapping, motion, (src_pos, src_rot), out, sole)
     return out
 
 
@@ -360,10 +368,12 @@ def planted(motion: Motion, ankle: int, positions: np.ndarray, leg: float) -> np
     return (height < height.min() + PLANT_HEIGHT * scale) & (speed < PLANT_SPEED * scale)
 
 
-def _plant_feet(mapping: RetargetMap, motion: Motion, source: tuple[np.ndarray, np.ndarray], out: Motion) -> Motion:
+def _plant_feet(
+    mapping: RetargetMap, motion: Motion, source: tuple[np.ndarray, np.ndarray], out: Motion, sole: float | None
+) -> Motion:
     """Hold each target foot where the source's is planted: in place from the frame the plant began,
-    its lowest point (toes, end sites) as high as the source foot's, scaled. Measured on the feet as
-    they are posed, so it holds whatever the skeletons' rest poses."""
+    its lowest point (toes, end sites) as high over the target's sole as the source foot's is over
+    the source's, scaled. Measured on the feet as they are posed, whatever the rest poses."""
     source_roles = dict(zip(mapping.roles, mapping.source_joints, strict=True))
     target_roles = dict(zip(mapping.roles, mapping.target_joints, strict=True))
     if not all(f"{p}_{s}" in source_roles for p in ("hip", "knee", "ankle") for s in SIDES):
@@ -371,19 +381,24 @@ def _plant_feet(mapping: RetargetMap, motion: Motion, source: tuple[np.ndarray, 
     src_leg = leg_length(mapping.source, {r: mapping.source.names[j] for r, j in source_roles.items()})
     feet = [(source_roles[f"ankle_{s}"], target_roles[f"ankle_{s}"], s) for s in SIDES]
     down = {s: planted(motion, ankle_s, source[0], src_leg) for ankle_s, _, s in feet}
-    if not any(d.any() for d in down.values()):
-        return out
+    src_low = {s: lowest_foot_point(mapping.source, ankle_s, *source) for ankle_s, _, s in feet}
+    planted_low = [src_low[s][down[s]] for s in down if down[s].any()]
+    src_sole = float(np.min(np.concatenate(planted_low))) if planted_low else min(v.min() for v in src_low.values())
+    target_sole = src_sole * mapping.scale if sole is None else sole
     pos, glob = out.global_transforms()
-    # Height of each target foot's lowest point over where the source's puts it (scaled), per frame.
+    # Height of each target foot's lowest point over where it belongs, per frame.
     over = {
         s: lowest_foot_point(mapping.target, ankle_t, pos, glob)
-        - lowest_foot_point(mapping.source, ankle_s, *source) * mapping.scale
-        for ankle_s, ankle_t, s in feet
+        - (target_sole + (src_low[s] - src_sole) * mapping.scale)
+        for _, ankle_t, s in feet
     }
     # Proportions differ (pelvis over hips, ankles over soles): first the whole body down (or up) by
     # the most any planted foot floats, then the legs lift the feet that would sink (a leg can bend
-    # but not stretch).
-    sink = float(np.max(np.concatenate([over[s][down[s]] for s in down])))
+    # but not stretch). Without a planted foot, the lowest foot reaches its height at its lowest.
+    if planted_low:
+        sink = float(np.max(np.concatenate([over[s][down[s]] for s in down])))
+    else:
+        sink = float(np.min(np.minimum(*over.values())))
     root_pos = out.root_pos - np.array([0.0, 0.0, sink])
     pos[..., 2] -= sink
     for ankle_s, ankle_t, s in feet:
