@@ -1,15 +1,22 @@
 """Armature + action <-> core.Motion, for any armature (not only BVH imports).
 
-Reading evaluates the armature frame by frame (constraints, drivers and all) and expresses each
-bone's pose in the core's BVH-like convention: rest pose = identity rotations, rest offsets in
-world axes. With B_j the bone's rest orientation in world space (object rotation @ bone rest) and
+Poses are expressed in the core's BVH-like convention: rest pose = identity rotations, rest offsets
+in world axes. With B_j the bone's rest orientation in world space (object rotation @ bone rest) and
 D_j = R_pose_j @ B_j^-1 its rotation away from rest in world space, the core's local rotation is
 L_j = D_parent^-1 @ D_j. Writing inverts this: the pose-bone quaternion is B_j^-1 @ L_j @ B_j, and a
 bone's location channel is B_j^-1 (local_pos_j - rest_offset_j) / object_scale.
 
-Blender has three live action APIs; they differ only in how F-curves are created, which
-`_fcurve_factory` hides, chosen by feature detection:
-- 4.2: `action.fcurves.new(data_path, index, action_group=...)`;
+Reading has two ways. Where the action alone moves the bones (no bone constraints, no drivers,
+every bone inheriting its parent's rotation, unit scale), it is writing inverted, straight from the
+F-curves in numpy: L_j = B_j @ basis_j @ B_j^-1, basis_j the bone's rotation channels (quaternion,
+Euler in the bone's order, or axis-angle), and local_pos_j = rest_offset_j + object_scale B_j
+location_j (a connected bone's location ignored, as Blender ignores it). Otherwise Blender evaluates
+the armature frame by frame (constraints, drivers and all) and the evaluated pose is read. Both give
+the same motion to float precision (tests/blender/test_read_motion_fast.py).
+
+Blender has three live action APIs; they differ in where F-curves live, which `_fcurve_factory`
+(writing) and `_playing_fcurves` (reading) hide, chosen by feature detection:
+- 4.2: `action.fcurves`, `fcurves.new(data_path, index, action_group=...)`;
 - 4.4/4.5: layered actions (slot, layer, keyframe strip, channelbag); `fcurves.new` takes no group
   name, so groups are made with `channelbag.groups.new` and assigned;
 - 5.0: layered only (`action.fcurves` is gone); `fcurves.new(..., group_name=...)`.
@@ -29,6 +36,9 @@ from ..core.errors import SkeletonError
 from ..core.skeleton import Motion, Skeleton
 
 LOCAL_POS_TOLERANCE = 1e-5  # metres (float32 pose matrices); below this, joint translations equal the rest offsets
+# Keyframe interpolation as foreach_get/foreach_set see it: the enum's stored byte (a uint8 buffer
+# is copied as is; any other type is converted value by value, several times slower).
+_CONSTANT, _LINEAR = 0, 1
 
 
 def _since_4_4(blender_object: object) -> Any:
@@ -101,11 +111,9 @@ def armature_skeleton(armature: bpy.types.Object) -> Skeleton:
     offsets = heads.copy()
     offsets[1:] -= heads[parents[1:]]
     obj_rot, scale, _ = _object_transform(armature)
-    tails = {
-        i: scale * quat.rotate(obj_rot, np.array(b.tail_local) - np.array(b.head_local))
-        for i, b in enumerate(bones)
-        if not b.children
-    }
+    leaves = [i for i, b in enumerate(bones) if not b.children]
+    tips = np.array([np.array(bones[i].tail_local) - np.array(bones[i].head_local) for i in leaves]).reshape(-1, 3)
+    tails = dict(zip(leaves, scale * quat.rotate(obj_rot, tips), strict=True))
     return Skeleton([b.name for b in bones], parents, offsets, tails)
 
 
@@ -158,65 +166,227 @@ def read_motion(
     armature: bpy.types.Object,
     action: bpy.types.Action | None = None,
     frame_range: tuple[int, int] | None = None,
+    *,
+    evaluate: bool = False,
 ) -> Motion:
-    """Evaluate `action` (default: the assigned one) on `armature` into a core Motion.
+    """`action` (default: the assigned one) on `armature` as a core Motion.
 
     frame_range: inclusive (first, last) Blender frames; default the action's frame range.
+    evaluate: let Blender evaluate every frame even where the F-curves alone would do: the reference
+      the direct reading is checked against, and the way to see a pose that frame-change handlers
+      set (the direct reading runs no handlers).
     The armature's own assignment, NLA state and the scene's current frame are restored.
     """
+    bpy.context.view_layer.update()  # the object's transform as it stands now, which both readings use
     skeleton = armature_skeleton(armature)
     bones = _bones_in_order(armature)
+    scene = bpy.context.scene
+    fps = scene.render.fps / scene.render.fps_base
     with _action_assigned(armature, action) as playing:
         if frame_range is None:
             if playing is None:
                 raise SkeletonError(f"armature '{armature.name}' has no action to read")
             frame_range = (round(playing.frame_range[0]), round(playing.frame_range[1]))
-        matrices = _sample_pose_matrices(armature, bones, frame_range)
-    scene = bpy.context.scene
-    fps = scene.render.fps / scene.render.fps_base
-    return _motion_from_matrices(armature, skeleton, bones, matrices, fps)
+        frames = np.arange(frame_range[0], frame_range[1] + 1)
+        motion = None if evaluate else _motion_from_fcurves(armature, skeleton, bones, frames, fps)
+        if motion is not None:
+            return motion
+        pose = _evaluated_pose(armature, bones, frames)
+    # the evaluated pose is taken to the core's convention with the frame and the object restored
+    return _motion_from_pose(armature, skeleton, bones, pose, fps)
 
 
-def _sample_pose_matrices(
-    armature: bpy.types.Object, bones: list[bpy.types.Bone], frame_range: tuple[int, int]
-) -> np.ndarray:
-    """Armature-space pose matrices (T, J, 4, 4), one bulk read per frame."""
+def _evaluated_pose(
+    armature: bpy.types.Object, bones: list[bpy.types.Bone], frames: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Armature-space heads (T, J, 3) and orientations (T, J, 4) as Blender evaluates them, one
+    scene update and one bulk read of the pose matrices per frame."""
     scene = bpy.context.scene
     pose_bones = armature.pose.bones
     order = np.array([pose_bones.find(b.name) for b in bones])
-    first, last = frame_range
     buffer = np.empty(len(pose_bones) * 16, dtype=np.float32)
-    out = np.empty((last - first + 1, len(bones), 4, 4))
-    for t, frame in enumerate(range(first, last + 1)):
-        scene.frame_set(frame)
+    matrices = np.empty((len(frames), len(bones), 4, 4))
+    for t, frame in enumerate(frames):
+        scene.frame_set(int(frame))
         # foreach_get returns each matrix column-major (ignore: an ndarray is a buffer, see _set_keys)
         pose_bones.foreach_get("matrix", buffer)  # pyright: ignore[reportArgumentType]
-        out[t] = buffer.reshape(-1, 4, 4).transpose(0, 2, 1)[order]
-    return out
+        matrices[t] = buffer.reshape(-1, 4, 4).transpose(0, 2, 1)[order]
+    return matrices[..., :3, 3], quat.from_matrix(_orthonormal(matrices[..., :3, :3]))
 
 
-def _motion_from_matrices(
-    armature: bpy.types.Object, skeleton: Skeleton, bones: list[bpy.types.Bone], matrices: np.ndarray, fps: float
+def _motion_from_pose(
+    armature: bpy.types.Object,
+    skeleton: Skeleton,
+    bones: list[bpy.types.Bone],
+    pose: tuple[np.ndarray, np.ndarray],
+    fps: float,
 ) -> Motion:
+    """The core Motion of armature-space heads (T, J, 3) and orientations (T, J, 4)."""
     obj_rot, scale, translation = _object_transform(armature)
     _, rest_rot = _rest_frames(armature, bones)
-    heads = translation + scale * quat.rotate(obj_rot, matrices[..., :3, 3])
-    pose_rot = quat.mul(obj_rot, quat.from_matrix(_orthonormal(matrices[..., :3, :3])))
+    heads = translation + scale * quat.rotate(obj_rot, pose[0])
+    pose_rot = quat.mul(obj_rot, pose[1])
     delta = quat.mul(pose_rot, quat.conj(rest_rot))  # D_j, (T, J, 4)
     parents = skeleton.parents
     parent_delta = delta[:, parents[1:]]
     local_rot = delta.copy()
     local_rot[:, 1:] = quat.mul(quat.conj(parent_delta), delta[:, 1:])
-    local_pos = np.broadcast_to(skeleton.offsets, heads.shape).copy()
+    local_pos = heads.copy()  # the root's row: its position
     local_pos[:, 1:] = quat.rotate(quat.conj(parent_delta), heads[:, 1:] - heads[:, parents[1:]])
+    return _local_motion(skeleton, fps, local_rot, local_pos)
+
+
+def _local_motion(skeleton: Skeleton, fps: float, local_rot: np.ndarray, local_pos: np.ndarray) -> Motion:
+    """The Motion of local rotations (T, J, 4) and translations (T, J, 3), row 0 the root's position;
+    the translations are kept only where some joint moves away from its rest offset."""
     translated = np.abs(local_pos[:, 1:] - skeleton.offsets[1:]).max(initial=0.0) > LOCAL_POS_TOLERANCE
     return Motion(
         skeleton=skeleton,
         fps=fps,
-        root_pos=heads[:, 0],
+        root_pos=local_pos[:, 0],
         local_rot=quat.normalize(local_rot),
         local_pos=local_pos if translated else None,
     )
+
+
+# ---------------------------------------------------------------------------------------------
+# Reading the action's F-curves without a scene update per frame
+
+# Pose-bone channels the pose depends on, and their widths.
+_POSE_CHANNELS = {"location": 3, "rotation_quaternion": 4, "rotation_euler": 3, "rotation_axis_angle": 4, "scale": 3}
+UNIT_SCALE_TOLERANCE = 1e-6  # a bone scaled further than this from 1 is evaluated by Blender
+
+
+def _motion_from_fcurves(
+    armature: bpy.types.Object, skeleton: Skeleton, bones: list[bpy.types.Bone], frames: np.ndarray, fps: float
+) -> Motion | None:
+    """The playing action as a Motion straight from its F-curves (see the module docstring), or None
+    where more than the action shapes the pose, the scene remaps time (Blender then reads the
+    curves between frames), or a curve needs more than Blender's linear or constant segments
+    between the frames asked for."""
+    fcurves = _playing_fcurves(armature)
+    render = bpy.context.scene.render
+    if fcurves is None or render.frame_map_old != render.frame_map_new or not _pose_is_action_only(armature, bones):
+        return None
+    pose_bones = armature.pose.bones
+    order = np.array([pose_bones.find(b.name) for b in bones])
+    # Every channel holds the pose bone's own value, what Blender keeps where nothing is keyed (a
+    # read-only view over the frames until a curve keys it)...
+    channels: dict[str, np.ndarray] = {}
+    for prop, width in _POSE_CHANNELS.items():
+        values = np.empty(len(pose_bones) * width, dtype=np.float32)
+        pose_bones.foreach_get(prop, values)  # pyright: ignore[reportArgumentType]
+        channels[prop] = np.broadcast_to(values.reshape(-1, width)[order], (len(frames), len(bones), width))
+    # ... and a keyed channel holds its curve, evaluated at every frame.
+    joint_of = {f'pose.bones["{bpy.utils.escape_identifier(b.name)}"]': j for j, b in enumerate(bones)}
+    for fcurve in fcurves:
+        bone_path, _, prop = fcurve.data_path.rpartition(".")
+        j = joint_of.get(bone_path)
+        if j is None or prop not in channels or fcurve.array_index >= _POSE_CHANNELS[prop]:
+            continue  # another bone, or a property that does not move the bone (custom, B-Bone...)
+        if not len(fcurve.keyframe_points):
+            continue  # Blender skips an empty curve
+        values = _fcurve_values(fcurve, frames)
+        if values is None:
+            return None
+        if not channels[prop].flags.writeable:
+            channels[prop] = channels[prop].astype(float)
+        channels[prop][:, j, fcurve.array_index] = values
+    if np.abs(channels["scale"] - 1.0).max(initial=0.0) > UNIT_SCALE_TOLERANCE:
+        return None
+    # Writing inverted: L_j = B_j basis_j B_j^-1, local_pos_j = rest_offset_j + s B_j location_j.
+    _, rest_rot = _rest_frames(armature, bones)
+    _, scale, _ = _object_transform(armature)
+    basis = _basis_rotations([pose_bones[i].rotation_mode for i in order], channels)
+    local_rot = quat.mul(quat.mul(rest_rot, basis), quat.conj(rest_rot))
+    connected = np.array([b.use_connect for b in bones])
+    location = np.where(connected[:, None], 0.0, channels["location"])
+    local_pos = skeleton.offsets + scale * quat.rotate(rest_rot, location)
+    return _local_motion(skeleton, fps, local_rot, local_pos)
+
+
+def _playing_fcurves(armature: bpy.types.Object) -> list[bpy.types.FCurve] | None:
+    """The F-curves the assigned action plays on the armature (its slot's, in Blender 4.4+), or
+    None where its layers could blend (more than one layer or strip)."""
+    adt = armature.animation_data
+    action = adt.action if adt is not None else None
+    if adt is None or action is None:
+        return []
+    if not hasattr(action, "layers"):  # 4.2: legacy actions
+        return list(action.fcurves)
+    layers, slot = _since_4_4(action).layers, _since_4_4(adt).action_slot
+    if len(layers) > 1 or any(len(layer.strips) > 1 for layer in layers):
+        return None
+    bags = [strip.channelbag(slot) for layer in layers for strip in layer.strips] if slot is not None else []
+    return [fcurve for bag in bags if bag is not None for fcurve in bag.fcurves]
+
+
+def _pose_is_action_only(armature: bpy.types.Object, bones: list[bpy.types.Bone]) -> bool:
+    """True where only the action moves these bones: the pose position shown, no drivers on the
+    object or its armature, no bone constraints, every bone inheriting its parent's rotation and
+    keying its location in its own axes."""
+    data = _armature_data(armature)
+    if data.pose_position != "POSE":
+        return False
+    if any(adt is not None and len(adt.drivers) for adt in (armature.animation_data, data.animation_data)):
+        return False
+    pose_bones = armature.pose.bones
+    return all(
+        b.use_inherit_rotation and b.use_local_location and not len(pose_bones[b.name].constraints) for b in bones
+    )
+
+
+def _fcurve_values(fcurve: bpy.types.FCurve, frames: np.ndarray) -> np.ndarray | None:
+    """The curve at the given whole frames (T,), as Blender evaluates it: a key's own value on its
+    frame, constant before the first key and after the last, linear or constant segments between
+    keys. None where that is not enough (muted, modifiers, extrapolated linearly, or a frame
+    between two keys joined by a Bézier or easing segment)."""
+    if fcurve.mute or (fcurve.group is not None and fcurve.group.mute) or len(fcurve.modifiers):
+        return None
+    points = fcurve.keyframe_points
+    co = np.empty(2 * len(points), dtype=np.float32)
+    points.foreach_get("co", co)  # pyright: ignore[reportArgumentType]
+    keys, values = co[0::2].astype(float), co[1::2].astype(float)
+    if np.array_equal(keys, frames):  # a key on every frame asked for (an import, a bake): the common case
+        return values
+    outside = (frames < keys[0]) | (frames > keys[-1])
+    if fcurve.extrapolation != "CONSTANT" and outside.any():
+        return None
+    left = np.clip(np.searchsorted(keys, frames, side="right") - 1, 0, len(keys) - 1)  # the key at or before
+    out = values[left]
+    between = ~outside & (keys[left] != frames)
+    if between.any():
+        interpolation = np.empty(len(points), dtype=np.uint8)
+        points.foreach_get("interpolation", interpolation)  # pyright: ignore[reportArgumentType]
+        segment = left[between]
+        kind = interpolation[segment]
+        if not np.isin(kind, (_CONSTANT, _LINEAR)).all():
+            return None
+        weight = (frames[between] - keys[segment]) / (keys[segment + 1] - keys[segment])
+        linear = values[segment] + weight * (values[segment + 1] - values[segment])
+        out[between] = np.where(kind == _LINEAR, linear, values[segment])
+    return out
+
+
+def _basis_rotations(modes: list[str], channels: dict[str, np.ndarray]) -> np.ndarray:
+    """Each bone's rotation channels as quaternions (T, J, 4), by its rotation mode.
+
+    Blender's Euler mode 'XYZ' applies X first: R = Rz Ry Rx, which is quat.from_euler with the
+    order reversed. Blender normalises quaternions and axes before use: the axes are normalised
+    here, the quaternions by _local_motion (conjugating by a unit B_j keeps their length).
+    """
+    rotations = channels["rotation_quaternion"].copy()
+    for mode in set(modes) - {"QUATERNION"}:
+        joints = [j for j, m in enumerate(modes) if m == mode]
+        if mode == "AXIS_ANGLE":
+            angle_axis = channels["rotation_axis_angle"][:, joints]
+            axis = angle_axis[..., 1:] / np.maximum(np.linalg.norm(angle_axis[..., 1:], axis=-1, keepdims=True), 1e-12)
+            rotations[:, joints] = quat.from_axis_angle(axis, angle_axis[..., 0])
+        else:
+            order = mode[::-1]
+            euler = channels["rotation_euler"][:, joints]
+            rotations[:, joints] = quat.from_euler(euler[..., [quat.AXES.index(a) for a in order]], order)
+    return rotations
 
 
 # ---------------------------------------------------------------------------------------------
@@ -280,15 +450,19 @@ def _joint_bones(armature: bpy.types.Object, skeleton: Skeleton, bones: list[bpy
 
 
 def _set_keys(fcurve: bpy.types.FCurve, frames: np.ndarray, values: np.ndarray) -> None:
-    """All keys of one curve in two bulk calls; linear interpolation (one key per frame)."""
+    """All keys of one curve in bulk calls; linear interpolation (one key per frame).
+
+    The keys come in frame order, so nothing needs sorting, and their Bézier handles are left where
+    `keyframe_points.add` puts them, as Blender's own BVH importer leaves them: linear segments never
+    use them, and Blender's editors compute them when a key is moved or made Bézier. Computing them
+    here (fcurve.update) would take longer than writing the keys.
+    """
     points = fcurve.keyframe_points
     points.add(len(frames))
     co = np.column_stack([frames, values]).astype(np.float32).ravel()
-    linear = np.ones(len(frames), dtype=np.int32)  # 1 = LINEAR
     # An ndarray is a buffer, but numpy 1.26's stubs declare __buffer__ only for Python 3.12+.
     points.foreach_set("co", co)  # pyright: ignore[reportArgumentType]
-    points.foreach_set("interpolation", linear)  # pyright: ignore[reportArgumentType]
-    fcurve.update()
+    points.foreach_set("interpolation", np.full(len(frames), _LINEAR, dtype=np.uint8))  # pyright: ignore[reportArgumentType]
 
 
 def _fcurve_factory(

@@ -5,12 +5,16 @@ from __future__ import annotations
 from pathlib import Path
 
 import bpy
+import numpy as np
 import pytest
 
 import reactive_anim
+from reactive_anim.blender import action_io, bvh_import
+from reactive_anim.core import quat
 from tests.support.mocap import require_mocap
 
 MALFORMED = Path(__file__).resolve().parents[1] / "data" / "malformed"
+WALK = Path(__file__).resolve().parents[2] / "sample_clips" / "walk.bvh"
 
 
 def test_import_builds_armature_with_quaternion_action_at_file_rate():
@@ -38,6 +42,42 @@ def test_malformed_file_is_refused_and_leaves_nothing_behind(name):
     assert path.is_file(), f"corpus file {name} is missing"
     before = (len(bpy.data.objects), len(bpy.data.armatures), len(bpy.data.actions))
     with pytest.raises(RuntimeError, match=rf"{name}, line \d+"):
+        bpy.ops.reactive_anim.import_bvh(filepath=str(path))
+    assert (len(bpy.data.objects), len(bpy.data.armatures), len(bpy.data.actions)) == before
+
+
+def test_import_selects_the_rig_and_fits_the_scene_to_the_motion():
+    bpy.context.scene.frame_end = 50
+    bpy.ops.reactive_anim.import_bvh(filepath=str(WALK))
+    rig = bpy.data.objects["walk"]
+    assert bpy.context.view_layer.objects.active == rig and rig.select_get()
+    assert rig.animation_data.action.name == "walk" and bpy.context.scene.frame_end == 264
+
+
+def test_the_same_file_twice_makes_two_rigs_each_playing_its_own_action():
+    """Blender renames the second rig; its action still plays on it (its own slot in Blender 4.4+)."""
+    first = bvh_import.import_bvh(bpy.context, WALK)
+    second = bvh_import.import_bvh(bpy.context, WALK)
+    assert second.name == "walk.001" and second.animation_data.action != first.animation_data.action
+    motions = [action_io.read_motion(rig, evaluate=True) for rig in (first, second)]
+    assert np.abs(motions[0].global_positions() - motions[1].global_positions()).max() < 1e-6
+    assert quat.angle_between(motions[1].local_rot[:, 1:], quat.identity()).max() > 0.3  # it moves
+
+
+def test_import_from_edit_mode_of_another_object():
+    mesh = bpy.data.objects.new("box", bpy.data.meshes.new("box"))
+    bpy.context.collection.objects.link(mesh)
+    bpy.context.view_layer.objects.active = mesh
+    bpy.ops.object.mode_set(mode="EDIT")
+    assert bpy.ops.reactive_anim.import_bvh(filepath=str(WALK)) == {"FINISHED"}
+    assert bpy.data.objects["walk"].mode == "OBJECT" and mesh.mode == "OBJECT"
+
+
+def test_a_joint_name_blender_cannot_hold_is_refused_and_leaves_nothing_behind(tmp_path):
+    path = tmp_path / "long_name.bvh"
+    path.write_text(WALK.read_text().replace("JOINT spine.001", "JOINT " + "s" * 64, 1))
+    before = (len(bpy.data.objects), len(bpy.data.armatures), len(bpy.data.actions))
+    with pytest.raises(RuntimeError, match="longer than the 63 bytes a Blender bone name holds"):
         bpy.ops.reactive_anim.import_bvh(filepath=str(path))
     assert (len(bpy.data.objects), len(bpy.data.armatures), len(bpy.data.actions)) == before
 
