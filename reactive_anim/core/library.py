@@ -182,17 +182,10 @@ class Library:
         raise LibraryError(f"the library has no clip '{name}'")
 
     def search_index(self) -> SearchIndex:
-        """The lower-bound index of the search, built on first use.
-
-        Its pivot distances (most of the build time) are kept beside the library's cache file and
-        reused by the next load of the same library.
-        """
+        """The search's index (window summaries, the tree, the strategy per scope), built on first
+        use and kept: a second and later search of this library reuses it."""
         if self._index is None:
-            pivots_path = self.cache_path.with_suffix(".pivots.npz") if self.cache_path else None
-            cached = _load_pivots(pivots_path) if pivots_path else None
-            self._index = build_index(self, cached_pivots=cached)
-            if pivots_path and (cached is None or not np.array_equal(cached[0], self._index.pivots)):
-                _save_arrays(pivots_path, pivots=self._index.pivots, pivot_dist=self._index.pivot_dist)
+            self._index = build_index(self)
         return self._index
 
     @property
@@ -465,14 +458,6 @@ def _save_arrays(path: Path, **arrays: np.ndarray) -> None:
     tmp = path.with_suffix(".tmp.npz")
     np.savez(tmp, **arrays)
     tmp.replace(path)
-
-
-def _load_pivots(path: Path) -> tuple[np.ndarray, np.ndarray] | None:
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            return data["pivots"], data["pivot_dist"]
-    except (OSError, ValueError, KeyError):
-        return None  # missing or damaged: the index computes them afresh
 
 
 def _load(path: Path, key: str) -> Library | None:

@@ -178,9 +178,8 @@ def react(
     ragdoll = ragdoll or character_ragdoll(motion, settings.profile)
     workspace = workspace or Workspace(ragdoll)
     casting = casting or Casting.between(source or motion, ragdoll.roles, library)
-    bc = simulate_impact(ragdoll, motion, impact, window=settings.reaction_window, workspace=workspace)
+    bc, before = _bc(motion, impact, ragdoll, settings, workspace)
     frame_c = int(bc.frames[-1])
-    before = _join(motion.slice(0, int(bc.frames[0])), bc.motion)
     clock.lap("bc")
     probabilities = _probabilities(classifier, motion, bc, ragdoll)
     clock.lap("classify")
@@ -270,6 +269,34 @@ def bake_reactions(
     if progress is not None:
         progress(len(ordered), len(ordered), "done")
     return Baked(current, reactions)
+
+
+def impact_query(
+    motion: Motion,
+    impact: Impact,
+    library: Library,
+    ragdoll: Ragdoll,
+    *,
+    settings: ReactionSettings | None = None,
+    workspace: Workspace | None = None,
+    casting: Casting | None = None,
+) -> tuple[Query, SimResult]:
+    """The search's query for an impact as `react` makes it (BC simulated, the library-rate window
+    ending at C, on the library's skeleton), and the BC result (for the classifier): the pipeline's
+    real queries, for benchmarks and tools that study the search."""
+    settings = settings or ReactionSettings()
+    _check_impact(motion, impact)
+    casting = casting or Casting.between(motion, ragdoll.roles, library)
+    bc, before = _bc(motion, impact, ragdoll, settings, workspace)
+    return _query_ending_at(before, int(bc.frames[-1]), casting, impact), bc
+
+
+def _bc(
+    motion: Motion, impact: Impact, ragdoll: Ragdoll, settings: ReactionSettings, workspace: Workspace | None
+) -> tuple[SimResult, Motion]:
+    """BC simulated, and the motion up to C with it (the mocap before B, the simulation from B)."""
+    bc = simulate_impact(ragdoll, motion, impact, window=settings.reaction_window, workspace=workspace)
+    return bc, _join(motion.slice(0, int(bc.frames[0])), bc.motion)
 
 
 def character_ragdoll(motion: Motion, profile: str = "anatomical") -> Ragdoll:

@@ -4,8 +4,9 @@ The paper searches the reaction class the network predicts for the library windo
 simulated one by Eq. 1 (window.py) and accepts it under a threshold. `search` does that for any set
 of classes; `search_with_fallback` widens the search class by class, then to the whole library, when
 the best cost is over the threshold, and says which scope produced the match. The search is exact:
-search_index.py prunes with lower bounds only, so the window returned is the one a scan of every
-window would return (ties to the lowest class, clip, frame).
+search_index.py rules windows out only by true bounds of Eq. 1 (search_bounds.py) and decides by
+the exact cost, so the window returned is the one a scan of every window would return (ties to the
+lowest class, clip, frame).
 """
 
 from __future__ import annotations

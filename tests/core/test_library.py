@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh, quat, search_index
+from reactive_anim.core import bvh, quat
+from reactive_anim.core import library as library_module
 from reactive_anim.core.classes import CLASS_SLUGS
 from reactive_anim.core.errors import LibraryError
 from reactive_anim.core.library import LibrarySettings, load_library, read_chains, read_manifest
@@ -273,19 +274,15 @@ def test_the_sample_library_loads(tmp_path: Path) -> None:
     assert all(c.next is not None for c in lib.clips if c.reaction_class.startswith("fall_"))
 
 
-def test_a_reloaded_library_reuses_its_pivot_distances(small_library: Path, tmp_path: Path, monkeypatch) -> None:
-    """The pivot distances, most of the index build, are cached beside the library and reused."""
-    first = load_library(small_library, cache_dir=tmp_path / "cache")
-    built = first.search_index()
-    assert first.cache_path.with_suffix(".pivots.npz").is_file()
+def test_a_library_builds_its_search_index_once(small_library: Path, tmp_path: Path, monkeypatch) -> None:
+    """The search index (window summaries, the tree, the strategy per scope) is built on the first
+    search of a Library and reused by every later one (a bake searches once per impact)."""
+    lib = load_library(small_library, cache_dir=tmp_path / "cache")
+    query = Query(lib.features(5, 5 + lib.window))
+    first = search(lib, query)
 
-    def no_recompute(*args, **kwargs):
-        raise AssertionError("pivot distances recomputed although cached")
+    def no_rebuild(*args, **kwargs):
+        raise AssertionError("search index built again")
 
-    monkeypatch.setattr(search_index, "_pivot_distances", no_recompute)
-    again = load_library(small_library, cache_dir=tmp_path / "cache")
-    reused = again.search_index()
-    assert np.array_equal(reused.pivots, built.pivots)
-    assert np.array_equal(reused.pivot_dist, built.pivot_dist)
-    query = Query(again.features(5, 5 + again.window))
-    assert search(again, query).cost == search(first, query).cost
+    monkeypatch.setattr(library_module, "build_index", no_rebuild)
+    assert search(lib, query) == first

@@ -1,9 +1,13 @@
 """The jump search (core/search.py, paper 2.4, Eq. 1, Table 2): exact, alignment-invariant, fast.
 
 - Fast equals the one-candidate-at-a-time reference (tests/support/search_reference.py) in match and
-  cost on random queries (synthetic library) and real ones (shared mocap), ties included.
+  cost on random queries (synthetic library), real ones (shared mocap) and the pipeline's own (BC
+  windows of pushes on the sample library), ties included, by either strategy (scan and walk) and
+  narrowed to classes.
+- Each library searches a scope the way measured faster when its index was built.
 - Turning and moving the query on the ground changes neither the match nor the cost.
 - Retrieval on the real mocap library: 200 perturbed windows found in their own clip.
+The bounds themselves are checked in test_search_bounds.py.
 """
 
 from __future__ import annotations
@@ -15,7 +19,9 @@ import pytest
 
 from reactive_anim.core import bvh, quat, search_index
 from reactive_anim.core.errors import LibraryError
+from reactive_anim.core.impact import Impact
 from reactive_anim.core.library import Library, load_library
+from reactive_anim.core.react import character_ragdoll, impact_query
 from reactive_anim.core.search import search, search_with_fallback
 from reactive_anim.core.skeleton import Motion
 from reactive_anim.core.window import (
@@ -28,8 +34,11 @@ from reactive_anim.core.window import (
     window_costs,
 )
 from tests.support.library_clips import make_clip, mocap_class, perturbed, write_toml
-from tests.support.mocap import MOCAP, mocap_files
+from tests.support.mocap import MOCAP, REPO, mocap_files
+from tests.support.poses import ground_axes
 from tests.support.search_reference import reference_cost, reference_search
+
+STRATEGIES = search_index.STRATEGIES
 
 
 @pytest.fixture(scope="module")
@@ -59,19 +68,38 @@ def find_best(
     classes: list[str] | None = None,
     position_weights: dict[str, float] = TABLE2_POSITION_WEIGHTS,
     rotation_weights: dict[str, float] = TABLE2_ROTATION_WEIGHTS,
+    strategy: str | None = None,
 ) -> tuple[int, float, int]:
     """The index's exact best (start, cost, evaluated) over the given classes (default all)."""
     index = library.search_index()
-    slugs = list(index.class_tops) if classes is None else classes
-    best = search_index.find_best(index, query, slugs, joint_weights(position_weights), joint_weights(rotation_weights))
+    slugs = list(index.class_windows) if classes is None else classes
+    wp, wq = joint_weights(position_weights), joint_weights(rotation_weights)
+    best = search_index.find_best(index, query, slugs, wp, wq, strategy=strategy)
     return best.start, best.cost, best.evaluated
 
 
 def assert_same(library, query: Query, classes=None) -> None:
-    start, cost, _ = find_best(library, query, classes)
+    """Both strategies find the reference's window, at its cost."""
     ref_start, ref_cost = reference_search(library, query, classes)
-    assert start == ref_start, f"fast {start} (cost {cost}) vs reference {ref_start} (cost {ref_cost})"
-    assert cost == pytest.approx(ref_cost, rel=1e-5, abs=1e-9)
+    for strategy in STRATEGIES:
+        start, cost, _ = find_best(library, query, classes, strategy=strategy)
+        assert start == ref_start, f"{strategy}: {start} (cost {cost}) vs reference {ref_start} (cost {ref_cost})"
+        assert cost == pytest.approx(ref_cost, rel=1e-5, abs=1e-9)
+
+
+def assert_same_as_every_cost(library, query: Query, classes=None) -> None:
+    """Both strategies find the window the exact cost of every window (window.window_costs, the
+    vectorised form of the reference) puts first, ties to the lowest start, at that cost; the
+    reference's cost of that window agrees."""
+    index = library.search_index()
+    windows = index.windows_of(list(index.class_windows) if classes is None else classes)
+    wp, wq = joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS)
+    costs = window_costs(library.frames, index.starts[windows], query, wp, wq)
+    first = index.starts[windows][np.flatnonzero(costs == costs.min())].min()
+    for strategy in STRATEGIES:
+        start, cost, _ = find_best(library, query, classes, strategy=strategy)
+        assert (start, cost) == (first, costs.min()), strategy
+    assert reference_cost(library, int(first), query) == pytest.approx(costs.min(), rel=1e-9)
 
 
 def test_weights_are_table2() -> None:
@@ -98,50 +126,59 @@ def test_fast_equals_reference_on_random_queries(synthetic, noise) -> None:
     assert_same(synthetic, random_query(synthetic, rng, *noise), ["sway_balance", "step_back"])
 
 
-def assert_pivot_bounds_hold(library, queries) -> None:
-    """The triangle bounds (search_index._pivot_node_bounds, _pivot_candidate_filter) never exceed
-    Eq. 1, and the stored float32 pivot distances are within the index's margin of the exact cost."""
-    index = library.search_index()
-    wp, wq = joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS)
-    assert len(index.pivots) > 0
-    for j, pivot in enumerate(index.pivots):
-        exact = window_costs(
-            library.frames, index.starts, Query(library.features(pivot, pivot + library.window)), wp, wq
-        )
-        assert np.max(np.abs(exact - index.pivot_dist[:, j])) < index.pivot_margin / 10
-    cands = np.arange(len(index.starts))
-    block = np.searchsorted(index.firsts[0], cands, side="right") - 1
-    for query in queries:
-        exact = window_costs(library.frames, index.starts, query, wp, wq)
-        dq = window_costs(library.frames, index.pivots, query, wp, wq).astype(np.float32)
-        node = search_index._pivot_node_bounds(index, 0, np.arange(len(index.firsts[0]) - 1), dq)
-        assert np.all(node[block] <= exact)
-        # Per candidate: every candidate the filter drops at threshold `cost` costs more than that.
-        for cost in np.quantile(exact, [0.0, 0.01, 0.2, 0.5]):
-            kept = search_index._pivot_candidate_filter(index, cands, dq, float(cost))
-            assert np.all(exact[np.setdiff1d(cands, kept)] > cost)
-
-
-def test_pivot_bounds_are_lower_bounds(synthetic, tmp_path: Path) -> None:
-    rng = np.random.default_rng(5)
-    queries = [random_query(synthetic, rng, *noise) for noise in ((0.0, 0.0), (0.01, 0.02), (0.3, 0.5))]
-    motion = bvh.read_bvh(make_clip(tmp_path / "other.bvh", 777, 150, 50.0))
-    queries.append(query_from_motion(motion, 10.0, synthetic.window, synthetic.fps))
-    assert_pivot_bounds_hold(synthetic, queries)
-
-
-def test_other_weights_skip_the_pivots_and_stay_exact(synthetic) -> None:
-    """The pivot distances hold for Table 2's weights only; other weights must still find the best."""
+def test_other_weights_stay_exact(synthetic) -> None:
+    """Weights other than Table 2's: both strategies still find the best window."""
     pw = {**TABLE2_POSITION_WEIGHTS, "wrist": 1.5, "hip": 0.1}
     rw = {**TABLE2_ROTATION_WEIGHTS, "knee": 0.0, "neck": 2.0}
     index = synthetic.search_index()
     rng = np.random.default_rng(11)
     for _ in range(3):
         query = random_query(synthetic, rng, 0.05, 0.1)
-        start, cost, _ = find_best(synthetic, query, position_weights=pw, rotation_weights=rw)
         costs = window_costs(synthetic.frames, index.starts, query, joint_weights(pw), joint_weights(rw))
-        assert start == index.starts[np.argmin(costs)]
-        assert cost == pytest.approx(reference_cost(synthetic, start, query, pw, rw), rel=1e-5)
+        for strategy in STRATEGIES:
+            start, cost, _ = find_best(synthetic, query, position_weights=pw, rotation_weights=rw, strategy=strategy)
+            assert start == index.starts[np.argmin(costs)]
+            assert cost == pytest.approx(reference_cost(synthetic, start, query, pw, rw), rel=1e-5)
+
+
+def test_each_scope_searches_the_way_measured_faster(synthetic) -> None:
+    """Building the index times scan and walk for the whole library and each class and keeps the
+    faster; a scope of several classes goes by its size; an unknown strategy is refused."""
+    index = synthetic.search_index()
+    assert set(index.strategies) == {"all", *index.class_windows}
+    assert set(index.strategies.values()) <= set(STRATEGIES)
+    scanned = [len(index.windows_of([s])) for s in index.class_windows if index.strategies[s] == "scan"]
+    assert index.scan_limit >= max(scanned, default=0)
+    two = list(index.class_windows)[:2]
+    expected = "scan" if len(index.windows_of(two)) <= index.scan_limit else "walk"
+    assert index.strategy(two) == expected
+    assert index.strategy(list(reversed(index.class_windows))) == index.strategies["all"]
+    query = Query(synthetic.features(10, 10 + synthetic.window))
+    with pytest.raises(ValueError, match="unknown search strategy 'bisect'"):
+        search_index.find_best(index, query, two, joint_weights(TABLE2_POSITION_WEIGHTS),
+                               joint_weights(TABLE2_ROTATION_WEIGHTS), strategy="bisect")  # fmt: skip
+
+
+def test_fast_equals_reference_on_the_pipelines_queries(tmp_path: Path) -> None:
+    """Pushes on the sample walk and run (six bones, from all around, 30-300 N.s), each query made
+    as the pipeline makes it (react.impact_query), against the sample library: whole library and
+    each class, both strategies; one class also against the one-window-at-a-time reference."""
+    library = load_library(REPO / "sample_clips", cache_dir=tmp_path / "cache")
+    queries = []
+    for clip in ("walk", "run"):
+        motion = bvh.read_bvh(REPO / "sample_clips" / f"{clip}.bvh")
+        ragdoll = character_ragdoll(motion)
+        for k, role in enumerate(("chest", "pelvis", "head", "shoulder_l", "hip_r", "knee_l")):
+            frame = 20 + 9 * k
+            forward, left = ground_axes(motion, frame)
+            angle = 2.0 * np.pi * k / 6 + 0.4
+            direction = np.cos(angle) * forward + np.sin(angle) * left
+            impact = Impact(frame, ragdoll.roles[role], tuple(direction), 30.0 + 54.0 * k)
+            queries.append(impact_query(motion, impact, library, ragdoll)[0])
+    for k, query in enumerate(queries):
+        assert_same_as_every_cost(library, query)
+        assert_same_as_every_cost(library, query, [list(library.class_ranges)[k % 10]])
+    assert_same(library, queries[0], ["fall_backward_sit"])
 
 
 def test_fast_equals_reference_on_unrelated_queries(synthetic, tmp_path: Path) -> None:
@@ -175,6 +212,11 @@ def test_ties_go_to_the_lowest_class_clip_frame(tmp_path: Path) -> None:
         ref_start, ref_cost = reference_search(lib, query)
         assert lib.clip_index[ref_start] == 0 and match.cost == pytest.approx(ref_cost, rel=1e-5)
         assert search(lib, query, ["sway_balance"]).clip == "a.bvh"
+        for strategy in STRATEGIES:
+            assert find_best(lib, query, strategy=strategy)[:2] == (ref_start, match.cost)
+            # Narrowed to the later class alone: its own copy wins there.
+            start = find_best(lib, query, ["sway_balance"], strategy=strategy)[0]
+            assert lib.clip_index[start] == 2 and lib.frame_index[start] == lib.frame_index[ref_start]
 
 
 def rotated_motion(motion: Motion, yaw: float, shift: np.ndarray) -> Motion:
@@ -292,7 +334,7 @@ def test_fast_equals_reference_on_real_mocap(tmp_path: Path) -> None:
         assert_same(lib, query_from_motion(motion, start, lib.window, lib.fps))
     for _ in range(2):
         assert_same(lib, random_query(lib, rng, 0.02, 0.02))
-    assert_pivot_bounds_hold(lib, [random_query(lib, rng, 0.02, 0.02), random_query(lib, rng, 0.1, 0.2)])
+    assert_same(lib, random_query(lib, rng, 0.1, 0.2), ["steps_forward", "step_back"])
 
 
 def test_retrieval_on_real_mocap(real_library) -> None:
