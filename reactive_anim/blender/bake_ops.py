@@ -165,11 +165,7 @@ def _some_armature(cls: type[bpy.types.Operator], test: Callable[[bpy.types.Obje
     return True
 
 
-class _OnArmature(bpy.types.Operator):
-    armature_name: StringProperty(name="Armature", description="The armature (default: the panel's)")
-
-
-class REACTIVE_ANIM_OT_accept_preview(_OnArmature):
+class REACTIVE_ANIM_OT_accept_preview(settings.ArmatureOperator):
     """Keep the previewed reactions: they become the character's bake, without computing again"""
 
     bl_idname = "reactive_anim.accept_preview"
@@ -180,18 +176,11 @@ class REACTIVE_ANIM_OT_accept_preview(_OnArmature):
     def poll(cls, context: bpy.types.Context) -> bool:
         return _some_armature(cls, preview.has_preview, "There is no preview to accept: click Preview first")
 
-    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
-        try:
-            armature = settings.target_armature(context, self.armature_name)
-            name = preview.accept_preview(armature)
-        except ReactiveAnimError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self.report({"INFO"}, f"'{armature.name}' plays '{name}', the accepted preview")
-        return {"FINISHED"}
+    def act(self, context: bpy.types.Context, armature: bpy.types.Object) -> str:
+        return f"'{armature.name}' plays '{preview.accept_preview(armature)}', the accepted preview"
 
 
-class REACTIVE_ANIM_OT_discard_preview(_OnArmature):
+class REACTIVE_ANIM_OT_discard_preview(settings.ArmatureOperator):
     """Remove the preview's ghost and its action"""
 
     bl_idname = "reactive_anim.discard_preview"
@@ -202,24 +191,17 @@ class REACTIVE_ANIM_OT_discard_preview(_OnArmature):
     def poll(cls, context: bpy.types.Context) -> bool:
         return _some_armature(cls, preview.has_preview, "There is no preview to discard")
 
-    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
-        try:
-            armature = settings.target_armature(context, self.armature_name)
-        except ReactiveAnimError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
+    def act(self, context: bpy.types.Context, armature: bpy.types.Object) -> str:
         if not preview.discard_preview(armature):
-            self.report({"ERROR"}, f"armature '{armature.name}' has no preview to discard")
-            return {"CANCELLED"}
-        self.report({"INFO"}, f"Discarded the preview of '{armature.name}'")
-        return {"FINISHED"}
+            raise ReactiveAnimError(f"armature '{armature.name}' has no preview to discard")
+        return f"Discarded the preview of '{armature.name}'"
 
 
 def _has_bake(ob: bpy.types.Object) -> bool:
     return bake.bake_state(ob).reacted_action is not None
 
 
-class REACTIVE_ANIM_OT_clear_bake(_OnArmature):
+class REACTIVE_ANIM_OT_clear_bake(settings.ArmatureOperator):
     """Go back to the original action and remove the baked reactions"""
 
     bl_idname = "reactive_anim.clear_bake"
@@ -230,12 +212,5 @@ class REACTIVE_ANIM_OT_clear_bake(_OnArmature):
     def poll(cls, context: bpy.types.Context) -> bool:
         return _some_armature(cls, _has_bake, "There are no baked reactions to clear")
 
-    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
-        try:
-            armature = settings.target_armature(context, self.armature_name)
-            original = bake.clear_bake(armature)
-        except ReactiveAnimError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        self.report({"INFO"}, f"'{armature.name}' plays '{original}' again; the reacted action is removed")
-        return {"FINISHED"}
+    def act(self, context: bpy.types.Context, armature: bpy.types.Object) -> str:
+        return f"'{armature.name}' plays '{bake.clear_bake(armature)}' again; the reacted action is removed"

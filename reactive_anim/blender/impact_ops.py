@@ -195,20 +195,32 @@ def _make_active(scene: bpy.types.Scene, marker: bpy.types.TimelineMarker) -> No
             settings.scene_settings(scene).active_impact = k
 
 
-class REACTIVE_ANIM_OT_aim_impact(bpy.types.Operator):
+class _OnImpact(bpy.types.Operator):
+    """An operator on one impact (its uid, else the impact list's active row): `act` does the work
+    and returns what to report; a ReactiveAnimError it raises is reported instead."""
+
+    uid: StringProperty(name="Impact", description="The impact marker's uid (default: the list's active row)")
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return has_impacts(cls, context)
+
+    def act(self, context: bpy.types.Context, marker: bpy.types.TimelineMarker) -> str:
+        raise NotImplementedError
+
+    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
+        return settings.reported(self, lambda: self.act(context, _marker(context, self.uid)))
+
+
+class REACTIVE_ANIM_OT_aim_impact(_OnImpact):
     """Aim an impact into the screen: its push comes from where the 3D view looks from"""
 
     bl_idname = "reactive_anim.aim_impact"
     bl_label = "Aim Impact from View"
     bl_options = {"REGISTER", "UNDO"}
 
-    uid: StringProperty(name="Impact", description="The impact marker's uid (default: the list's active row)")
     flatten: BoolProperty(name="Flatten", description="Lay the direction flat on the ground", default=True)
     view_rotation: FloatVectorProperty(name="View Rotation", size=4, default=(1.0, 0.0, 0.0, 0.0), options={"HIDDEN"})
-
-    @classmethod
-    def poll(cls, context: bpy.types.Context) -> bool:
-        return has_impacts(cls, context)
 
     def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[OperatorReturnItems]:
         rotation = view_rotation_of(context)
@@ -218,62 +230,34 @@ class REACTIVE_ANIM_OT_aim_impact(bpy.types.Operator):
         self.view_rotation = rotation
         return self.execute(context)
 
-    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
-        try:
-            marker = _marker(context, self.uid)
-        except ReactiveAnimError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
+    def act(self, context: bpy.types.Context, marker: bpy.types.TimelineMarker) -> str:
         impacts.impact_data(marker).direction = view_direction(tuple(self.view_rotation), self.flatten)
-        return {"FINISHED"}
+        return ""
 
 
-class REACTIVE_ANIM_OT_jump_to_impact(bpy.types.Operator):
+class REACTIVE_ANIM_OT_jump_to_impact(_OnImpact):
     """Go to an impact's frame and make it the active one"""
 
     bl_idname = "reactive_anim.jump_to_impact"
     bl_label = "Jump to Impact"
     bl_options = {"REGISTER"}
 
-    uid: StringProperty(name="Impact", description="The impact marker's uid (default: the list's active row)")
-
-    @classmethod
-    def poll(cls, context: bpy.types.Context) -> bool:
-        return has_impacts(cls, context)
-
-    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
-        try:
-            marker = _marker(context, self.uid)
-        except ReactiveAnimError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
+    def act(self, context: bpy.types.Context, marker: bpy.types.TimelineMarker) -> str:
         context.scene.frame_set(marker.frame)
         _make_active(context.scene, marker)
-        return {"FINISHED"}
+        return ""
 
 
-class REACTIVE_ANIM_OT_remove_impact(bpy.types.Operator):
+class REACTIVE_ANIM_OT_remove_impact(_OnImpact):
     """Remove an impact and its timeline marker"""
 
     bl_idname = "reactive_anim.remove_impact"
     bl_label = "Remove Impact"
     bl_options = {"REGISTER", "UNDO"}
 
-    uid: StringProperty(name="Impact", description="The impact marker's uid (default: the list's active row)")
-
-    @classmethod
-    def poll(cls, context: bpy.types.Context) -> bool:
-        return has_impacts(cls, context)
-
-    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
-        try:
-            marker = _marker(context, self.uid)
-            label = impacts.marker_label(marker)
-            impacts.remove_impact(context.scene, marker)
-        except ReactiveAnimError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
+    def act(self, context: bpy.types.Context, marker: bpy.types.TimelineMarker) -> str:
+        label = impacts.marker_label(marker)
+        impacts.remove_impact(context.scene, marker)
         active = settings.scene_settings(context.scene)
         active.active_impact = min(active.active_impact, len(context.scene.timeline_markers) - 1)
-        self.report({"INFO"}, f"Removed {label}")
-        return {"FINISHED"}
+        return f"Removed {label}"

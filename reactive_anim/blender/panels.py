@@ -107,11 +107,9 @@ class REACTIVE_ANIM_PT_main(bpy.types.Panel):
         layout.label(text=f"Motion: {action.name}", icon="ACTION")
 
 
-class REACTIVE_ANIM_PT_impacts(bpy.types.Panel):
-    """The impact list and the active impact's fields."""
+class _CharacterPanel:
+    """A Reactions subpanel, shown once there is a character."""
 
-    bl_idname = "REACTIVE_ANIM_PT_impacts"
-    bl_label = "Impacts"
     bl_space_type = "VIEW_3D"
     bl_region_type = "UI"
     bl_category = "Reactions"
@@ -120,6 +118,13 @@ class REACTIVE_ANIM_PT_impacts(bpy.types.Panel):
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
         return settings.panel_character(context) is not None
+
+
+class REACTIVE_ANIM_PT_impacts(_CharacterPanel, bpy.types.Panel):
+    """The impact list and the active impact's fields."""
+
+    bl_idname = "REACTIVE_ANIM_PT_impacts"
+    bl_label = "Impacts"
 
     def draw(self, context: bpy.types.Context) -> None:
         layout = self.layout
@@ -156,19 +161,11 @@ class REACTIVE_ANIM_PT_impacts(bpy.types.Panel):
         col.prop(props, "reaction")
 
 
-class REACTIVE_ANIM_PT_bake(bpy.types.Panel):
+class REACTIVE_ANIM_PT_bake(_CharacterPanel, bpy.types.Panel):
     """Bake, preview, accept, discard, clear; the progress of a running bake; the last bake's summary."""
 
     bl_idname = "REACTIVE_ANIM_PT_bake"
     bl_label = "Bake"
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "Reactions"
-    bl_parent_id = REACTIVE_ANIM_PT_main.bl_idname
-
-    @classmethod
-    def poll(cls, context: bpy.types.Context) -> bool:
-        return settings.panel_character(context) is not None
 
     def draw(self, context: bpy.types.Context) -> None:
         layout = self.layout
@@ -202,20 +199,12 @@ class REACTIVE_ANIM_PT_bake(bpy.types.Panel):
         with_settings.prop(scene_settings, "model_path", placeholder="shipped classifier")
 
 
-class REACTIVE_ANIM_PT_roles(bpy.types.Panel):
+class REACTIVE_ANIM_PT_roles(_CharacterPanel, bpy.types.Panel):
     """Which bone plays each joint role, for rigs whose names are not recognised."""
 
     bl_idname = "REACTIVE_ANIM_PT_roles"
     bl_label = "Character Roles"
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "Reactions"
-    bl_parent_id = REACTIVE_ANIM_PT_main.bl_idname
     bl_options = {"DEFAULT_CLOSED"}
-
-    @classmethod
-    def poll(cls, context: bpy.types.Context) -> bool:
-        return settings.panel_character(context) is not None
 
     def draw(self, context: bpy.types.Context) -> None:
         layout = self.layout

@@ -20,7 +20,7 @@ from ..core.skeleton import Skeleton
 from . import action_io, settings
 
 if TYPE_CHECKING:
-    from bpy._typing.rna_enums import OperatorReturnItems  # fake-bpy-module's name for the result set
+    pass  # fake-bpy-module's name for the result set
 
 PRESET_ITEMS = [(name, name.replace("_", " ").title(), f"Bone names as {name} writes them") for name in RIG_PRESETS]
 
@@ -82,9 +82,7 @@ def _has_armature(cls: type[bpy.types.Operator], context: bpy.types.Context) -> 
     return True
 
 
-class _OnCharacter(bpy.types.Operator):
-    armature_name: StringProperty(name="Armature", description="The armature (default: the panel's)")
-
+class _OnCharacter(settings.ArmatureOperator):
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
         return _has_armature(cls, context)
@@ -97,20 +95,14 @@ class REACTIVE_ANIM_OT_detect_roles(_OnCharacter):
     bl_label = "Detect Roles"
     bl_options = {"REGISTER", "UNDO"}
 
-    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
-        try:
-            armature = settings.target_armature(context, self.armature_name)
-            found = guess_roles(action_io.armature_skeleton(armature), valid_overrides(armature))
-        except ReactiveAnimError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
+    def act(self, context: bpy.types.Context, armature: bpy.types.Object) -> str:
+        found = guess_roles(action_io.armature_skeleton(armature), valid_overrides(armature))
         set_roles(armature, found)
         missing = [r for r in REQUIRED_ROLES if r not in found]
         if missing:
             self.report({"WARNING"}, f"'{armature.name}': no bone found for {', '.join(missing)}; map them by hand")
-        else:
-            self.report({"INFO"}, f"'{armature.name}': every role has its bone")
-        return {"FINISHED"}
+            return ""
+        return f"'{armature.name}': every role has its bone"
 
 
 class REACTIVE_ANIM_OT_role_preset(_OnCharacter):
@@ -122,19 +114,12 @@ class REACTIVE_ANIM_OT_role_preset(_OnCharacter):
 
     preset: EnumProperty(name="Rig", items=PRESET_ITEMS)
 
-    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
-        try:
-            armature = settings.target_armature(context, self.armature_name)
-            found = preset_roles(self.preset, list(cast(bpy.types.Armature, armature.data).bones.keys()))
-        except ReactiveAnimError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
+    def act(self, context: bpy.types.Context, armature: bpy.types.Object) -> str:
+        found = preset_roles(self.preset, list(cast(bpy.types.Armature, armature.data).bones.keys()))
         if not found:
-            self.report({"ERROR"}, f"'{armature.name}' has none of the {self.preset} rig's bone names")
-            return {"CANCELLED"}
+            raise SkeletonError(f"'{armature.name}' has none of the {self.preset} rig's bone names")
         set_roles(armature, found)
-        self.report({"INFO"}, f"'{armature.name}': {len(found)} roles mapped from the {self.preset} preset")
-        return {"FINISHED"}
+        return f"'{armature.name}': {len(found)} roles mapped from the {self.preset} preset"
 
 
 class REACTIVE_ANIM_OT_clear_roles(_OnCharacter):
@@ -144,14 +129,9 @@ class REACTIVE_ANIM_OT_clear_roles(_OnCharacter):
     bl_label = "Clear Roles"
     bl_options = {"REGISTER", "UNDO"}
 
-    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
-        try:
-            armature = settings.target_armature(context, self.armature_name)
-        except ReactiveAnimError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
+    def act(self, context: bpy.types.Context, armature: bpy.types.Object) -> str:
         role_entries(armature).clear()
-        return {"FINISHED"}
+        return f"'{armature.name}': every role is found by name again"
 
 
 def check_roles(armature: bpy.types.Object) -> str:

@@ -8,13 +8,17 @@ given no armature name finds its target, the same way from a button, a script or
 
 from __future__ import annotations
 
-from typing import cast
+from collections.abc import Callable
+from typing import TYPE_CHECKING, cast
 
 import bpy
 from bpy.props import IntProperty, PointerProperty, StringProperty
 
-from ..core.errors import SkeletonError
+from ..core.errors import ReactiveAnimError, SkeletonError
 from . import impacts
+
+if TYPE_CHECKING:
+    from bpy._typing.rna_enums import OperatorReturnItems  # fake-bpy-module's name for the result set
 
 GHOST_TAG = "reactive_anim_ghost"  # the ID property that marks a preview's ghost (preview.py)
 
@@ -97,3 +101,29 @@ def active_impact_marker(scene: bpy.types.Scene, armature_name: str | None = Non
         return None
     marker = markers[index]
     return marker if armature_name is None or impacts.impact_data(marker).armature == armature_name else None
+
+
+class ArmatureOperator(bpy.types.Operator):
+    """An operator on one armature (named, else the panel's character): `act` does the work and
+    returns what to report; a ReactiveAnimError it raises is reported instead, and nothing is done."""
+
+    armature_name: StringProperty(name="Armature", description="The armature (default: the panel's)")
+
+    def act(self, context: bpy.types.Context, armature: bpy.types.Object) -> str:
+        raise NotImplementedError
+
+    def execute(self, context: bpy.types.Context) -> set[OperatorReturnItems]:
+        return reported(self, lambda: self.act(context, target_armature(context, self.armature_name)))
+
+
+def reported(operator: bpy.types.Operator, action: Callable[[], str]) -> set[OperatorReturnItems]:
+    """Run an operator's work: FINISHED with its message reported, or CANCELLED with the
+    ReactiveAnimError it raised reported as the error (it must change nothing before raising)."""
+    try:
+        message = action()
+    except ReactiveAnimError as exc:
+        operator.report({"ERROR"}, str(exc))
+        return {"CANCELLED"}
+    if message:
+        operator.report({"INFO"}, message)
+    return {"FINISHED"}

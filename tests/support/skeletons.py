@@ -59,3 +59,17 @@ def with_finger(skeleton: Skeleton) -> Skeleton:
         offsets=np.vstack([skeleton.offsets, [0.0, 0.0, -0.1]]),
         end_sites=ends,
     )
+
+
+def role_bone_angles(mapping, source: np.ndarray, target: np.ndarray) -> dict[str, float]:
+    """Mean angle (degrees) per role between the source's and the target's bone directions, from
+    global positions (T, J, 3) of each (retarget.RetargetMap `mapping` names the bones)."""
+    angles = {}
+    for k, role in enumerate(mapping.roles):
+        if mapping.source_child[k] < 0 or mapping.target_child[k] < 0:
+            continue
+        a = source[:, mapping.source_child[k]] - source[:, mapping.source_joints[k]]
+        b = target[:, mapping.target_child[k]] - target[:, mapping.target_joints[k]]
+        cos = np.sum(a * b, -1) / np.linalg.norm(a, axis=-1) / np.linalg.norm(b, axis=-1)
+        angles[role] = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).mean())
+    return angles
