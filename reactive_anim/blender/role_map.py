@@ -56,7 +56,7 @@ def apply_character_roles(armature: bpy.types.Object, skeleton: Skeleton) -> dic
     """Give the bake's skeleton the armature's roles (its map, the rest by name); SkeletonError
     names the roles that are missing, the bones there are, and where to map them."""
     try:
-        return apply_roles(skeleton, role_overrides(armature) or None)
+        return apply_roles(skeleton, valid_overrides(armature) or None)  # as the panel: stale bones found by name
     except SkeletonError as exc:
         raise SkeletonError(
             f"armature '{armature.name}': {exc}. Map them in the Reactions panel, Character Roles"

@@ -222,6 +222,8 @@ def _bone_frame(skeleton: Skeleton, roles: dict[str, str], pose: Pose, role: str
         along = pos[child] - pos[joint]
     else:  # a bone without a child points along its end site, else up
         along = quat.rotate(rot[joint], skeleton.end_sites.get(int(joint), np.array([0.0, 0.0, 1.0])))
+    if np.linalg.norm(along) < MIN_BONE and skeleton.parents[joint] >= 0:  # an End Site at 0 0 0: as its parent
+        along = pos[joint] - pos[skeleton.parents[joint]]
     left, right = (pos[skeleton.index(roles[r])] for r in _lateral_pair(role))
     up = pos[skeleton.index(roles["neck"])] - pos[skeleton.index(roles["pelvis"])]
     side = left - right
@@ -401,6 +403,8 @@ def _plant_feet(
         sink = float(np.min(np.minimum(*over.values())))
     root_pos = out.root_pos - np.array([0.0, 0.0, sink])
     pos[..., 2] -= sink
+    left = pos[:, target_roles["hip_l"]] - pos[:, target_roles["hip_r"]]
+    forward = np.cross(left, pos[:, target_roles["neck"]] - pos[:, target_roles["pelvis"]])
     for ankle_s, ankle_t, s in feet:
         if not down[s].any():
             continue
@@ -408,7 +412,7 @@ def _plant_feet(
         goal[:, 2] -= over[s] - sink
         goal = _planted_track(goal, source[0][:, ankle_s] * mapping.scale, down[s])
         joints = (target_roles[f"hip_{s}"], target_roles[f"knee_{s}"], ankle_t)
-        _two_bone_ik(mapping.target, pos, glob, joints, goal, _eased(down[s]))
+        _two_bone_ik(mapping.target, pos, glob, joints, goal, _eased(down[s]), left, forward)
     return Motion(skeleton=out.skeleton, fps=out.fps, root_pos=root_pos, local_rot=_locals(mapping.target, glob))
 
 
@@ -437,11 +441,12 @@ def _planted_track(goal: np.ndarray, source: np.ndarray, down: np.ndarray) -> np
 
 def _eased(down: np.ndarray) -> np.ndarray:
     """1 on planted frames, ramping to 0 over EASE_FRAMES frames on either side."""
-    distance = np.full(len(down), np.inf)
-    on = np.flatnonzero(down)
-    if len(on):
-        distance = np.min(np.abs(np.arange(len(down))[:, None] - on[None, :]), axis=1)
-    return np.clip(1.0 - distance / (EASE_FRAMES + 1), 0.0, 1.0)
+    weight = down.astype(float)
+    for shift in range(1, EASE_FRAMES + 1):
+        ramp = 1.0 - shift / (EASE_FRAMES + 1)
+        weight[shift:] = np.maximum(weight[shift:], ramp * down[:-shift])
+        weight[:-shift] = np.maximum(weight[:-shift], ramp * down[shift:])
+    return weight
 
 
 def _two_bone_ik(
@@ -451,9 +456,13 @@ def _two_bone_ik(
     joints: tuple[int, int, int],
     goal: np.ndarray,
     weight: np.ndarray,
+    left: np.ndarray,
+    forward: np.ndarray,
 ) -> None:
-    """Turn hip and knee (global rotations, in place) so the ankle reaches toward `goal` by `weight`;
-    the knee bends in the plane it already bends in, the foot keeps its world orientation."""
+    """Turn hip and knee (global rotations, in place) so the ankle reaches toward `goal` by `weight`.
+    A knee bent forward keeps its plane; a straight one (whose plane is float noise, and may point
+    backwards) bends about the body's left-right line (`left`, per frame), its shin toward the back
+    (`forward` is the body's front). The foot keeps its world orientation."""
     hip, knee, ankle = joints
     t = np.flatnonzero(weight > 0)
     if not len(t):
@@ -462,14 +471,22 @@ def _two_bone_ik(
     target = a + weight[t, None] * (goal[t] - a)
     thigh, shin = np.linalg.norm(k - h, axis=-1), np.linalg.norm(a - k, axis=-1)
     reach = np.clip(np.linalg.norm(target - h, axis=-1), np.abs(thigh - shin) + 1e-4, thigh + shin - 1e-4)
-    bend_axis = np.cross(h - k, a - k)
-    straight = np.linalg.norm(bend_axis, axis=-1) < 1e-9  # a straight leg bends forward, about the hips' line
-    bend_axis[straight] = quat.rotate(glob[t[straight], hip], np.array([1.0, 0.0, 0.0]))
-    bend_axis = _unit(bend_axis)
-    now = np.arccos(np.clip(np.sum(_unit(h - k) * _unit(a - k), axis=-1), -1.0, 1.0))
     want = np.arccos(np.clip((thigh**2 + shin**2 - reach**2) / (2 * thigh * shin), -1.0, 1.0))
-    turn_knee = quat.from_axis_angle(bend_axis, want - now)  # opens the knee's angle by want - now
-    new_a = k + quat.rotate(turn_knee, a - k)
+    # A knee bent forward enough turns in its own plane (the source's, kept); a straight or
+    # backward one is rebuilt about the left-right line, shin to the back.
+    plane = np.cross(h - k, a - k)
+    now = np.arccos(np.clip(np.sum(_unit(h - k) * _unit(a - k), axis=-1), -1.0, 1.0))
+    natural = (np.pi - now > np.radians(5.0)) & (np.sum(plane * left[t], axis=-1) < 0.0)
+    along = _unit(k - h)
+    hinge = left[t] - along * np.sum(left[t] * along, axis=-1, keepdims=True)
+    hinge = np.where((np.linalg.norm(hinge, axis=-1) < 1e-6)[:, None], plane, hinge)  # a thigh along the hips
+    bend = np.pi - want  # 0: straight
+    rebuilt = [quat.rotate(quat.from_axis_angle(_unit(hinge), sign * bend), along) for sign in (1.0, -1.0)]
+    backward = np.sum(rebuilt[0] * forward[t], axis=-1) <= np.sum(rebuilt[1] * forward[t], axis=-1)
+    kept = quat.rotate(quat.from_axis_angle(_unit(plane), want - now), _unit(a - k))  # opens the angle to want
+    shin_dir = np.where(natural[:, None], kept, np.where(backward[:, None], rebuilt[0], rebuilt[1]))
+    turn_knee = arc(_unit(a - k), shin_dir)
+    new_a = k + shin_dir * shin[:, None]
     swing = arc(_unit(new_a - h), _unit(target - h))
     foot = glob[t, ankle].copy()
     chain = _path(skeleton, hip, ankle)  # ankle, ..., knee, ..., hip

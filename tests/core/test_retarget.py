@@ -125,3 +125,40 @@ def test_a_motion_of_another_skeleton_is_refused():
         retarget.retarget(renamed, mapping)
     with pytest.raises(SkeletonError, match="base motion must be on the target skeleton"):
         retarget.retarget(WALK, mapping, base=WALK)
+
+
+def _backward_knee_degrees(motion: Motion) -> float:
+    """The most any knee of the motion bends backwards (shin in front of the thigh's line), degrees."""
+    roles = assign_roles(motion.skeleton)
+    pos = motion.global_positions()
+    idx = {r: motion.skeleton.index(n) for r, n in roles.items()}
+    left = pos[:, idx["hip_l"]] - pos[:, idx["hip_r"]]
+    worst = 0.0
+    for side in ("l", "r"):
+        h, k, a = (pos[:, idx[f"{p}_{side}"]] for p in ("hip", "knee", "ankle"))
+        plane = np.cross(h - k, a - k)
+        cos = np.sum((h - k) * (a - k), -1) / np.linalg.norm(h - k, axis=-1) / np.linalg.norm(a - k, axis=-1)
+        bend = 180.0 - np.degrees(np.arccos(np.clip(cos, -1, 1)))
+        backward = np.sum(plane * left, -1) > 0
+        worst = max(worst, float(bend[backward].max(initial=0.0)))
+    return worst
+
+
+@pytest.mark.parametrize(("label", "target"), TARGETS, ids=[t[0] for t in TARGETS])
+def test_the_feet_ik_never_bends_a_knee_backwards(label, target):
+    """A straight leg's bend plane is float noise: the IK must bend it forward, as a knee does."""
+    sources = [WALK] + [bvh.read_bvh(p) for p in mocap_files("cmu/90_18.bvh")]  # legs straight in places
+    for source in sources:
+        out = retarget.retarget(source, retarget.retarget_map(source.skeleton, target))
+        assert _backward_knee_degrees(out) <= max(2.0, _backward_knee_degrees(source) + 0.5), source.skeleton.names[0]
+
+
+def test_an_end_site_at_zero_lines_up_as_its_bone():
+    """BVH exporters that write `End Site 0 0 0`: the hand lines up along its forearm, not at random."""
+    target = t_pose_variant()
+    hand = target.index("hand.R")
+    flat = replace(target, end_sites={**target.end_sites, hand: np.zeros(3)})
+    normal = retarget.retarget(WALK, retarget.retarget_map(WALK.skeleton, target), fix_feet=False)
+    zero = retarget.retarget(WALK, retarget.retarget_map(WALK.skeleton, flat), fix_feet=False)
+    turned = np.degrees(quat.angle_between(normal.global_rotations()[:, hand], zero.global_rotations()[:, hand]))
+    assert turned.max() < 1.0, turned.max()  # the hand's end site runs along the forearm in this rig
