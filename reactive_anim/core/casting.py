@@ -32,21 +32,21 @@ class Casting:
     library: Library
     reference: Skeleton  # the library's skeleton (its first clip's)
     sole: float  # how high the character's lowest foot point is on the floor, in its own motion
-    _poses: dict[tuple[str, ...], Pose] = field(default_factory=dict)  # skeleton names -> pose it is lined up at
-    _maps: dict[tuple[str, ...], RetargetMap] = field(default_factory=dict)
+    _poses: dict[tuple, Pose] = field(default_factory=dict)  # skeleton (_key) -> the pose it is lined up at
+    _maps: dict[tuple, RetargetMap] = field(default_factory=dict)
     _clips: dict[tuple[str, float], Motion] = field(default_factory=dict)
 
     @classmethod
     def between(cls, character: Motion, roles: dict[str, str], library: Library) -> Casting:
         first = library.clip_motion(library.clips[0].name, library.fps)
         casting = cls(character.skeleton, roles, library, first.skeleton, _sole(character, roles))
-        casting._poses[tuple(first.skeleton.names)] = reference_pose(first, casting._roles(first.skeleton))
-        casting._poses.setdefault(tuple(character.skeleton.names), reference_pose(character, roles))
+        casting._poses[_key(first.skeleton)] = reference_pose(first, casting._roles(first.skeleton))
+        casting._poses.setdefault(_key(character.skeleton), reference_pose(character, roles))
         return casting
 
     @property
     def same_skeleton(self) -> bool:
-        return self.reference.names == self.character.names
+        return same_skeleton(self.reference, self.character)
 
     def query(self, before: Motion, start: float) -> Query:
         """The library-rate window from `start` (before's frames), on the library's skeleton."""
@@ -63,26 +63,24 @@ class Casting:
         key = (name, float(fps))
         if key not in self._clips:
             motion = self.library.clip_motion(name, fps)
-            if motion.skeleton.names != self.character.names:
-                self._poses.setdefault(
-                    tuple(motion.skeleton.names), reference_pose(motion, self._roles(motion.skeleton))
-                )
+            if not same_skeleton(motion.skeleton, self.character):
+                self._poses.setdefault(_key(motion.skeleton), reference_pose(motion, self._roles(motion.skeleton)))
                 motion = retarget(motion, self._map(motion.skeleton, self.character), sole=self.sole)
             self._clips[key] = motion
         return self._clips[key]
 
     def _map(self, source: Skeleton, target: Skeleton) -> RetargetMap:
-        key = (*source.names, "->", *target.names)
+        key = (_key(source), _key(target))
         if key not in self._maps:
             self._maps[key] = retarget_map(
                 source, target, self._roles(source), self._roles(target),
-                self._poses[tuple(source.names)], self._poses[tuple(target.names)],
+                self._poses[_key(source)], self._poses[_key(target)],
             )  # fmt: skip
         return self._maps[key]
 
     def _roles(self, skeleton: Skeleton) -> dict[str, str]:
         """The character's roles as given; another skeleton's own, or found by name."""
-        if skeleton.names == self.character.names:
+        if same_skeleton(skeleton, self.character):
             return self.roles
         return skeleton.roles or assign_roles(skeleton)
 
@@ -93,3 +91,14 @@ def _sole(motion: Motion, roles: dict[str, str]) -> float:
     pos, rot = motion.global_transforms()
     sk = motion.skeleton
     return float(min(lowest_foot_point(sk, sk.index(roles[f"ankle_{s}"]), pos, rot).min() for s in SIDES))
+
+
+def same_skeleton(a: Skeleton, b: Skeleton) -> bool:
+    """One skeleton: the same joints, parents and rest offsets (a character with the library's joint
+    names but its own proportions, another CMU subject say, is retargeted)."""
+    return a.names == b.names and np.array_equal(a.parents, b.parents) and np.allclose(a.offsets, b.offsets, atol=1e-4)
+
+
+def _key(skeleton: Skeleton) -> tuple:
+    """A skeleton as a dictionary key: its joints and rest offsets (to 0.1 mm)."""
+    return tuple(skeleton.names), np.round(skeleton.offsets, 4).tobytes()

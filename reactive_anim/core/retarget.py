@@ -95,23 +95,31 @@ def motion_pose(motion: Motion, frame: int = 0) -> Pose:
     return pos[frame], rot[frame]
 
 
-def standing_rest(skeleton: Skeleton, roles: dict[str, str]) -> bool:
-    """The rest pose is a standing body (neck over the pelvis, both legs straight down), so it can
-    line up bones with another skeleton's; the arms may be anywhere."""
-    rest = skeleton.rest_positions()
+def uprightness(skeleton: Skeleton, roles: dict[str, str], positions: np.ndarray) -> np.ndarray:
+    """How much each pose (positions (..., J, 3)) is a standing body: the least of how straight up
+    the neck is over the pelvis and how straight down each leg hangs (1: exactly; arms anywhere)."""
 
-    def down(top: str, bottom: str) -> float:
-        v = rest[skeleton.index(roles[bottom])] - rest[skeleton.index(roles[top])]
-        return -v[2] / max(float(np.linalg.norm(v)), 1e-12)
+    def down(top: str, bottom: str) -> np.ndarray:
+        v = positions[..., skeleton.index(roles[bottom]), :] - positions[..., skeleton.index(roles[top]), :]
+        return -v[..., 2] / np.maximum(np.linalg.norm(v, axis=-1), 1e-12)
 
     legs = [down(f"hip_{s}", f"ankle_{s}") for s in SIDES]
-    return -down("pelvis", "neck") > 0.9 and min(legs) > 0.9
+    return np.minimum(-down("pelvis", "neck"), np.minimum(*legs))
+
+
+def standing_rest(skeleton: Skeleton, roles: dict[str, str]) -> bool:
+    """The rest pose is a standing body, so it can line up bones with another skeleton's."""
+    return bool(uprightness(skeleton, roles, skeleton.rest_positions()) > 0.9)
 
 
 def reference_pose(motion: Motion, roles: dict[str, str]) -> Pose:
     """Where a motion's skeleton is lined up with another: its rest pose if that is a standing body
-    (exact between skeletons of one body), else the motion's first frame."""
-    return rest_pose(motion.skeleton) if standing_rest(motion.skeleton, roles) else motion_pose(motion)
+    (exact between skeletons of one body), else its most upright frame (a clip may start lying)."""
+    if standing_rest(motion.skeleton, roles):
+        return rest_pose(motion.skeleton)
+    pos, rot = motion.global_transforms()
+    best = int(np.argmax(uprightness(motion.skeleton, roles, pos)))
+    return pos[best], rot[best]
 
 
 def retarget_map(

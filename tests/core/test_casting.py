@@ -105,3 +105,19 @@ def test_real_walks_of_other_skeletons_find_windows_as_close_as_the_sample_walk(
 
     theirs, ours = median_cost(casting, walk), median_cost(sample, WALK)
     assert theirs < 2.5 * ours and theirs < 40.0, (theirs, ours)
+
+
+def test_the_librarys_joint_names_on_other_proportions_are_retargeted(library):
+    """Another subject of the same rig (the sample's names, legs 15% longer) is not the library's
+    skeleton: its clips come scaled to its legs."""
+    offsets = WALK.skeleton.offsets.copy()
+    for name in ("shin.L", "shin.R", "foot.L", "foot.R"):
+        offsets[WALK.skeleton.index(name)] *= 1.15
+    taller = replace(WALK.skeleton, offsets=offsets, roles={})
+    character = retarget.retarget(WALK, retarget.retarget_map(WALK.skeleton, taller))
+    casting = Casting.between(character, assign_roles(taller), library)
+    assert not casting.same_skeleton
+    clip = casting.clip("step_back_1.bvh", 60.0)
+    source = library.clip_motion("step_back_1.bvh", 60.0)
+    assert clip.skeleton is taller or np.allclose(clip.skeleton.offsets, taller.offsets)
+    assert clip.root_pos[:, 2].mean() > source.root_pos[:, 2].mean() + 0.03  # the hips stand higher
