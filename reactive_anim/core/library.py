@@ -40,7 +40,7 @@ from __future__ import annotations
 import hashlib
 import json
 import tomllib
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -55,7 +55,7 @@ from .window import FrameFeatures, frame_features
 
 MANIFEST_NAME = "library.toml"
 # Bump when the features or the cache layout change, so old caches are never read.
-FEATURE_VERSION = 1
+FEATURE_VERSION = 2  # 2: each clip keeps its roles (a character on another skeleton needs them)
 DEFAULT_FPS = 30.0
 DEFAULT_WINDOW = 8
 
@@ -99,6 +99,7 @@ class ClipInfo:
     num_frames: int  # frames at the library's rate
     next: str | None = None
     library_fps: float = DEFAULT_FPS
+    roles: dict[str, str] = field(default_factory=dict)  # the roles its features were computed with
 
     def source_frame(self, frame: int) -> float:
         """The BVH frame (fractional when resampled) of a library frame of this clip."""
@@ -223,6 +224,7 @@ class Library:
             duration = (info.num_frames - 1) / info.library_fps
             stop = min(motion.num_frames, info.source_start + int(np.floor(duration * motion.fps + 1e-6)) + 1)
             motion = motion.slice(info.source_start, stop)
+            motion.skeleton.roles = dict(info.roles)  # as its features were computed (manifest overrides)
         return motion if np.isclose(motion.fps, fps) else resample(motion, frame_times(motion, fps))
 
     def clip_start(self, clip_index: int) -> int:
@@ -433,8 +435,9 @@ def compile_clip(entry: ClipEntry, settings: LibrarySettings) -> tuple[ClipInfo,
         motion = resample(motion, times)
     features = frame_features(motion, role_map)
     info = ClipInfo(
-        entry.name, str(entry.path), entry.reaction_class, source_fps, start, features.num_frames, entry.next
-    )
+        entry.name, str(entry.path), entry.reaction_class, source_fps, start, features.num_frames, entry.next,
+        roles=role_map,
+    )  # fmt: skip
     return info, features
 
 

@@ -16,6 +16,7 @@ from reactive_anim.core.library import load_library
 from reactive_anim.core.react import character_ragdoll, react
 from reactive_anim.core.roles import assign_roles
 from reactive_anim.core.search import search
+from tests.support.library_clips import write_toml
 from tests.support.mocap import REPO, require_mocap
 from tests.support.skeletons import WALK, t_pose_variant
 
@@ -121,3 +122,15 @@ def test_the_librarys_joint_names_on_other_proportions_are_retargeted(library):
     source = library.clip_motion("step_back_1.bvh", 60.0)
     assert clip.skeleton is taller or np.allclose(clip.skeleton.offsets, taller.offsets)
     assert clip.root_pos[:, 2].mean() > source.root_pos[:, 2].mean() + 0.03  # the hips stand higher
+
+
+def test_a_clips_role_overrides_reach_the_bake(tmp_path):
+    """A library.toml entry's `roles` decide the clip's joints for its features; the bake must read
+    the clip with the same roles (the query is retargeted onto them)."""
+    clip = REPO / "sample_clips" / "step_back_1.bvh"
+    write_toml(tmp_path, [{"file": str(clip), "class": "step_back", "roles": {"chest": "spine.001"}}])
+    library = load_library(tmp_path, cache_dir=tmp_path / "cache")
+    assert library.clip_motion(library.clips[0].name, 60.0).skeleton.roles["chest"] == "spine.001"
+    renamed, roles = _renamed()
+    casting = Casting.between(renamed, roles, library)
+    assert casting._roles(casting.reference)["chest"] == "spine.001"
