@@ -57,7 +57,13 @@ class _Computes(bpy.types.Operator):
         subtype="FILE_PATH",
     )
 
+    bl_options = {"UNDO"}  # no REGISTER: a redo from Adjust Last Operation would bake again, blocking
+
     _run: worker.ModalRun | None = None
+
+    @classmethod
+    def poll(cls, context: bpy.types.Context) -> bool:
+        return _computable(cls, context)
 
     def write(self, job: bake.BakeJob, baked: Baked, seconds: float) -> bake.BakeResult:
         raise NotImplementedError
@@ -130,11 +136,6 @@ class REACTIVE_ANIM_OT_bake(_Computes):
 
     bl_idname = "reactive_anim.bake"
     bl_label = "Bake Reactions"
-    bl_options = {"UNDO"}  # no REGISTER: a redo from Adjust Last Operation would bake again, blocking
-
-    @classmethod
-    def poll(cls, context: bpy.types.Context) -> bool:
-        return _computable(cls, context)
 
     def write(self, job: bake.BakeJob, baked: Baked, seconds: float) -> bake.BakeResult:
         result = bake.commit_bake(job, baked, seconds)
@@ -147,11 +148,6 @@ class REACTIVE_ANIM_OT_preview(_Computes):
 
     bl_idname = "reactive_anim.preview"
     bl_label = "Preview Reactions"
-    bl_options = {"UNDO"}  # no REGISTER: a redo from Adjust Last Operation would bake again, blocking
-
-    @classmethod
-    def poll(cls, context: bpy.types.Context) -> bool:
-        return _computable(cls, context)
 
     def write(self, job: bake.BakeJob, baked: Baked, seconds: float) -> bake.BakeResult:
         return preview.show_preview(job, baked, seconds)

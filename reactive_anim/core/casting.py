@@ -12,6 +12,7 @@ character's, or the clip's) where the rest pose is no standing body, as in some 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -25,28 +26,29 @@ from .window import Query, query_from_motion
 @dataclass
 class Casting:
     """How one character's motion meets one library: retarget maps both ways, clips kept once
-    retargeted (a bake uses a clip for several impacts)."""
+    retargeted (a bake uses a clip for several impacts). Nothing is computed for a character on
+    the library's own skeleton, and everything else only when first needed."""
 
-    character: Skeleton
+    character: Motion
     roles: dict[str, str]
     library: Library
-    reference: Skeleton  # the library's skeleton (its first clip's)
-    sole: float  # how high the character's lowest foot point is on the floor, in its own motion
+    reference: Motion  # the library's first clip: its skeleton is the one the search compares on
     _poses: dict[tuple, Pose] = field(default_factory=dict)  # skeleton (_key) -> the pose it is lined up at
     _maps: dict[tuple, RetargetMap] = field(default_factory=dict)
     _clips: dict[tuple[str, float], Motion] = field(default_factory=dict)
 
     @classmethod
     def between(cls, character: Motion, roles: dict[str, str], library: Library) -> Casting:
-        first = library.clip_motion(library.clips[0].name, library.fps)
-        casting = cls(character.skeleton, roles, library, first.skeleton, _sole(character, roles))
-        casting._poses[_key(first.skeleton)] = reference_pose(first, casting._roles(first.skeleton))
-        casting._poses.setdefault(_key(character.skeleton), reference_pose(character, roles))
-        return casting
+        return cls(character, roles, library, library.clip_motion(library.clips[0].name, library.fps))
 
-    @property
+    @cached_property
     def same_skeleton(self) -> bool:
-        return same_skeleton(self.reference, self.character)
+        return same_skeleton(self.reference.skeleton, self.character.skeleton)
+
+    @cached_property
+    def sole(self) -> float:
+        """How high the character's lowest foot point is on the floor, in its own motion."""
+        return _sole(self.character, self.roles)
 
     def query(self, before: Motion, start: float) -> Query:
         """The library-rate window from `start` (before's frames), on the library's skeleton."""
@@ -56,31 +58,40 @@ class Casting:
         first = int(np.floor(start))
         last = min(before.num_frames, int(np.ceil(start + (library.window - 1) * before.fps / library.fps)) + 2)
         moved = retarget(before.slice(first, last), self._map(self.character, self.reference), fix_feet=False)
-        return query_from_motion(moved, start - first, library.window, library.fps, self._roles(self.reference))
+        return query_from_motion(
+            moved, start - first, library.window, library.fps, self._roles(self.reference.skeleton)
+        )
 
     def clip(self, name: str, fps: float) -> Motion:
         """A library clip at `fps`, played by the character (its feet held where the clip's are planted)."""
         key = (name, float(fps))
         if key not in self._clips:
             motion = self.library.clip_motion(name, fps)
-            if not same_skeleton(motion.skeleton, self.character):
-                self._poses.setdefault(_key(motion.skeleton), reference_pose(motion, self._roles(motion.skeleton)))
-                motion = retarget(motion, self._map(motion.skeleton, self.character), sole=self.sole)
+            if not same_skeleton(motion.skeleton, self.character.skeleton):
+                motion = retarget(motion, self._map(motion, self.character), sole=self.sole)
             self._clips[key] = motion
         return self._clips[key]
 
-    def _map(self, source: Skeleton, target: Skeleton) -> RetargetMap:
-        key = (_key(source), _key(target))
+    def _map(self, source: Motion, target: Motion) -> RetargetMap:
+        """The map between two motions' skeletons, each lined up at its reference pose (the first
+        motion seen on a skeleton decides its pose)."""
+        key = (_key(source.skeleton), _key(target.skeleton))
         if key not in self._maps:
+            poses = [self._pose(m) for m in (source, target)]
             self._maps[key] = retarget_map(
-                source, target, self._roles(source), self._roles(target),
-                self._poses[_key(source)], self._poses[_key(target)],
-            )  # fmt: skip
+                source.skeleton, target.skeleton, self._roles(source.skeleton), self._roles(target.skeleton), *poses
+            )
         return self._maps[key]
+
+    def _pose(self, motion: Motion) -> Pose:
+        key = _key(motion.skeleton)
+        if key not in self._poses:
+            self._poses[key] = reference_pose(motion, self._roles(motion.skeleton))
+        return self._poses[key]
 
     def _roles(self, skeleton: Skeleton) -> dict[str, str]:
         """The character's roles as given; another skeleton's own, or found by name."""
-        if same_skeleton(skeleton, self.character):
+        if same_skeleton(skeleton, self.character.skeleton):
             return self.roles
         return skeleton.roles or assign_roles(skeleton)
 

@@ -133,4 +133,4 @@ def test_a_clips_role_overrides_reach_the_bake(tmp_path):
     assert library.clip_motion(library.clips[0].name, 60.0).skeleton.roles["chest"] == "spine.001"
     renamed, roles = _renamed()
     casting = Casting.between(renamed, roles, library)
-    assert casting._roles(casting.reference)["chest"] == "spine.001"
+    assert casting._roles(casting.reference.skeleton)["chest"] == "spine.001"
