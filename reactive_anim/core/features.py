@@ -32,11 +32,15 @@ What differs from the paper, with the reason:
     reach      how far the centre of pressure can still move that way inside the base of support;
     excess     the departure's length beyond that reach;
     speed_along  the centre of mass's speed along the departure;
-    height     the centre of mass above the floor at C.
+    height     the centre of mass above the floor at C;
+    xcom_cos, xcom_sin  the departure's direction from the facing: cosine and |sine| of its angle.
   The last six are the balance state the outcome rule (outcome.py) reads. Measured on 9,000
   simulated pushes, a model given the departure and the reach but not the excess and the speed
   along it scored 96.0 % instead of 97.3 %: the rule's thresholds lie on those two, and a net
-  learns a threshold on one input from far fewer samples than on a norm it must compute.
+  learns a threshold on one input from far fewer samples than on a norm it must compute. The
+  direction's cosine and |sine| are there for the same reason: the rule's forward / side / backward
+  sectors (45 degrees either side of the facing axis) are thresholds on them, where on xcom_dx and
+  xcom_dy they are the lines |y| = x and |y| = -x.
   For a simulated push the motion is the mocap at C; a real reaction capture has no unpushed
   version, so there it is the body at B carried on at its velocity at B.
 """
@@ -83,6 +87,8 @@ EXTENDED_FEATURES: tuple[str, ...] = PAPER_FEATURES + (
     "excess",
     "speed_along",
     "height",
+    "xcom_cos",
+    "xcom_sin",
 )
 FEATURE_SETS = {"paper": PAPER_FEATURES, "extended": EXTENDED_FEATURES}
 TRACKED_ROLES = ("head", "chest", "pelvis")
@@ -193,12 +199,20 @@ def reaction_features(body: Body, state: ReactionState) -> np.ndarray:
             frame @ state.com_velocity / speed,
             frame[:2, :2] @ departure / length,
             [reach / length, (distance - reach) / length, along / speed, (state.com_c[2] - state.floor) / length],
+            _direction(frame[:2, :2] @ departure, distance),
         ]
     )
 
 
+def _direction(local: np.ndarray, distance: float) -> list[float]:
+    """Cosine and |sine| of a horizontal vector's angle from forward (both 0 for no vector)."""
+    if distance <= 0.0:
+        return [0.0, 0.0]
+    return [float(local[0]) / distance, abs(float(local[1])) / distance]
+
+
 def select(features: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
-    """The columns `names` of EXTENDED_FEATURES rows (..., 24), e.g. PAPER_FEATURES."""
+    """The columns `names` of EXTENDED_FEATURES rows (..., 26), e.g. PAPER_FEATURES."""
     unknown = [n for n in names if n not in EXTENDED_FEATURES]
     if unknown:
         raise SkeletonError(f"unknown reaction features: {', '.join(unknown)}")

@@ -539,7 +539,7 @@ def _mjcf(ragdoll_bodies: list[RagdollBody], geometry: _Geometry, excludes: list
             toe = np.array([seg[0], seg[1], ball_z])
             lines.append(
                 f'{indent}  <geom name="{b.name}" type="capsule" fromto="{_fmt(heel)} {_fmt(toe)}" '
-                f'size="{radii[k]:.6g}" mass="{b.mass:.17g}"/>'
+                f'size="{radii[k]:.6g}" mass="{b.mass:.17g}" condim="4" friction="1 0.03 0.0001"/>'
             )
         elif np.linalg.norm(seg) < 2 * radii[k]:
             lines.append(

@@ -70,7 +70,8 @@ class ReactionSettings:
     resume: after a reaction that ends standing, resume the original motion [True].
     chain_blend: seconds over which a chained get-up fades in where the fall ends [0.2].
     assist: the root assist that keeps the body up during CD (balance.py), None for the paper's
-      pure PD tracking [RootAssist(): at most 0.3 of body weight, let go past 20-40 degrees of tilt].
+      pure PD tracking [RootAssist(): lift at most 0.3 of body weight, torques at most 0.4 m g h, let go
+      past 20-40 degrees of tilt].
     """
 
     reaction_window: float = 0.25

@@ -414,13 +414,21 @@ def _plant_feet(
     left = pos[:, target_roles["hip_l"]] - pos[:, target_roles["hip_r"]]
     forward = np.cross(left, pos[:, target_roles["neck"]] - pos[:, target_roles["pelvis"]])
     for ankle_s, ankle_t, s in feet:
-        if not down[s].any():
-            continue
         goal = pos[:, ankle_t].copy()
         goal[:, 2] -= over[s] - sink
         goal = _planted_track(goal, source[0][:, ankle_s] * mapping.scale, down[s])
+        weight = _eased(down[s])
+        ankle = pos[:, ankle_t]
+        goal = ankle + weight[:, None] * (goal - ankle)
+        # Off the plants (and easing out of them), a foot the proportions put through the floor is
+        # lifted onto it, by as much as it sinks (no higher than the source's foot, which may itself
+        # dip below its sole).
+        belongs = (src_low[s] - src_sole) * mapping.scale  # over the target's sole
+        below = np.maximum(np.minimum(belongs, 0.0) - (over[s] + belongs - sink), 0.0)
+        goal[:, 2] = np.maximum(goal[:, 2], ankle[:, 2] + below)
+        moved = ((weight > 0.0) | (below > 0.0)).astype(float)
         joints = (target_roles[f"hip_{s}"], target_roles[f"knee_{s}"], ankle_t)
-        _two_bone_ik(mapping.target, pos, glob, joints, goal, _eased(down[s]), left, forward)
+        _two_bone_ik(mapping.target, pos, glob, joints, goal, moved, left, forward)
     return Motion(skeleton=out.skeleton, fps=out.fps, root_pos=root_pos, local_rot=_locals(mapping.target, glob))
 
 

@@ -121,8 +121,9 @@ def test_pushes_from_behind_and_from_the_front_give_opposite_forward_features(cl
     behind = dict(
         zip(EXTENDED_FEATURES, reaction_features(reader.body, pushed(motion, reader, "chest", "back")), strict=True)
     )
-    for name in ("dev_x", "dev_vx", "xcom_dx"):
+    for name in ("dev_x", "dev_vx", "xcom_dx", "xcom_cos"):
         assert ahead[name] > 0 > behind[name], (name, ahead[name], behind[name])
+    assert ahead["xcom_cos"] ** 2 + ahead["xcom_sin"] ** 2 == pytest.approx(1.0)
     if clip == "idle":
         for name in ("chest_dx", "com_dx", "com_vx"):
             assert ahead[name] > 0 > behind[name], (name, ahead[name], behind[name])
@@ -139,6 +140,8 @@ def test_pushes_to_the_left_and_to_the_right_give_opposite_sideways_features(cli
     )
     for name in ("pelvis_dy", "com_dy", "dev_y", "dev_vy", "xcom_dy"):
         assert left[name] > 0 > right[name], (name, left[name], right[name])
+    # |sine|: the side is in xcom_dy; the sector the rule reads is the same both ways.
+    assert left["xcom_sin"] > abs(left["xcom_cos"]) and right["xcom_sin"] > abs(right["xcom_cos"])
 
 
 def test_a_motion_that_carries_on_has_no_departure(clips):

@@ -275,7 +275,7 @@ FALLS: dict[str, Fall] = {
     "fall_backward_sit_1": _sit(180.0, 10.0, 100.0, 125.0, 50.0, 90.0),
     "fall_backward_sit_2": _sit(160.0, 10.0, 80.0, 110.0, 50.0, 90.0),
     "fall_backward_sit_3": _sit(-160.0, 10.0, 110.0, 135.0, 60.0, 110.0),
-    "fall_side_knees_1": _side_knees(90.0, 45.0, 45.0),
+    "fall_side_knees_1": _side_knees(90.0, 40.0, 45.0),
     "fall_side_knees_2": _side_knees(80.0, 45.0, 40.0),
     "fall_side_knees_3": _side_knees(80.0, 45.0, 35.0),
 }
