@@ -75,7 +75,10 @@ def from_axis_angle(axis: ArrayLike, angle: ArrayLike) -> np.ndarray:
     """Rotation by `angle` radians `(...)` about unit `axis` `(..., 3)`."""
     axis = np.asarray(axis, dtype=float)
     half = 0.5 * np.asarray(angle, dtype=float)[..., None]
-    return np.concatenate([np.cos(half), np.sin(half) * axis], axis=-1)
+    out = np.empty(np.broadcast_shapes(half.shape[:-1] + (4,), axis.shape[:-1] + (4,)))
+    out[..., :1] = np.cos(half)
+    out[..., 1:] = np.sin(half) * axis
+    return out
 
 
 def _axis_index(order: str) -> list[int]:
@@ -133,15 +136,19 @@ def to_euler(q: ArrayLike, order: str) -> np.ndarray:
 
 def to_matrix(q: ArrayLike) -> np.ndarray:
     """Rotation matrices `(..., 3, 3)` of unit quaternions."""
-    w, x, y, z = np.moveaxis(normalize(q), -1, 0)
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        axis=-2,
-    )
+    q = normalize(q)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    m = np.empty(q.shape[:-1] + (3, 3))
+    m[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    m[..., 0, 1] = 2 * (x * y - w * z)
+    m[..., 0, 2] = 2 * (x * z + w * y)
+    m[..., 1, 0] = 2 * (x * y + w * z)
+    m[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    m[..., 1, 2] = 2 * (y * z - w * x)
+    m[..., 2, 0] = 2 * (x * z - w * y)
+    m[..., 2, 1] = 2 * (y * z + w * x)
+    m[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return m
 
 
 def from_matrix(m: ArrayLike) -> np.ndarray:
@@ -152,20 +159,26 @@ def from_matrix(m: ArrayLike) -> np.ndarray:
     m20, m21, m22 = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]
     trace = m00 + m11 + m22
     # Four candidate formulas; use the one with the largest pivot for numerical stability.
-    cands = np.stack(
-        [
-            np.stack([1 + trace, m21 - m12, m02 - m20, m10 - m01], -1),
-            np.stack([m21 - m12, 1 + m00 - m11 - m22, m01 + m10, m02 + m20], -1),
-            np.stack([m02 - m20, m01 + m10, 1 - m00 + m11 - m22, m12 + m21], -1),
-            np.stack([m10 - m01, m02 + m20, m12 + m21, 1 - m00 - m11 + m22], -1),
-        ],
-        axis=-2,
-    )
-    pivots = np.stack([trace, m00, m11, m22], -1)
+    d21, d02, d10 = m21 - m12, m02 - m20, m10 - m01
+    s01, s02, s12 = m01 + m10, m02 + m20, m12 + m21
+    cands = np.empty(m.shape[:-2] + (4, 4))
+    cands[..., 0, :] = _columns(1 + trace, d21, d02, d10)
+    cands[..., 1, :] = _columns(d21, 1 + m00 - m11 - m22, s01, s02)
+    cands[..., 2, :] = _columns(d02, s01, 1 - m00 + m11 - m22, s12)
+    cands[..., 3, :] = _columns(d10, s02, s12, 1 - m00 - m11 + m22)
+    pivots = _columns(trace, m00, m11, m22)
     best = np.argmax(pivots, axis=-1)
     q = np.take_along_axis(cands, best[..., None, None], axis=-2)[..., 0, :]
     q = normalize(q)
     return np.where(q[..., :1] < 0, -q, q)
+
+
+def _columns(*parts: np.ndarray) -> np.ndarray:
+    """np.stack(parts, -1) for same-shaped arrays, into one array without stack's copies."""
+    out = np.empty(parts[0].shape + (len(parts),))
+    for k, part in enumerate(parts):
+        out[..., k] = part
+    return out
 
 
 def angle_between(a: ArrayLike, b: ArrayLike) -> np.ndarray:
