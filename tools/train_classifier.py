@@ -33,7 +33,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--clips", type=Path, nargs="+", help="locomotion BVH clips of your character (default: the samples)"
     )
-    p.add_argument("--samples", type=int, help="pushes to simulate (default 24000, quick 1500)")
+    p.add_argument("--samples", type=int, help="pushes to simulate (default 40000, quick 1500)")
     p.add_argument("--seed", type=int, default=Config.seed)
     p.add_argument("--workers", type=int, default=default_workers(), help="simulation processes (default: 2)")
     p.add_argument("--out", type=Path, help="the .onnx to write (the report goes beside it, .md)")

@@ -54,7 +54,7 @@ class Config:
     them); max_strength: the strongest push (N·s)."""
 
     clips: tuple[Path, ...] = SAMPLE_CLIPS
-    samples: int = 24000
+    samples: int = 40000
     seed: int = 12
     workers: int = 2
     classes: tuple[str, ...] = CLASS_SLUGS
