@@ -53,6 +53,8 @@ from .window import (
     yaw_rotate,
 )
 
+STILL_KEPT = 0.5  # s of a clip's still tail played before the motion resumes or a get-up begins
+
 
 @dataclass(frozen=True)
 class ReactionSettings:
@@ -201,7 +203,8 @@ def react(
     cd = track(ragdoll, bc.state, target, steps / motion.fps, assist=settings.assist, workspace=workspace)
     clock.lap("cd")
     transition = blend(cd.motion, clip_ef, fade_weights(steps + 1))
-    out = _join(before.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, clip.num_frames))
+    stop = max(frame_e + steps + 1, _still_from(library, match.clip_index, motion.fps))
+    out = _join(before.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, min(stop, clip.num_frames)))
     clock.lap("blend")
     out, chained = _chain(out, casting, match, ragdoll.roles, settings)
     end_frame = out.num_frames - 1
@@ -378,21 +381,32 @@ def _chain(
     return _join(out.slice(0, out.num_frames - 1), faded, follow.slice(overlap, follow.num_frames)), name
 
 
+def _still_from(library: Library, clip_index: int, fps: float) -> int:
+    """The frame (at `fps`) where the reaction ends: the clip's still tail (search_index.window_limits)
+    kept for STILL_KEPT, then the motion resumes or the get-up begins (the sample step clips stand
+    still for 2 s after recovering: a walker stood as long before walking on)."""
+    still = int(library.search_index().limits[clip_index])
+    return round(still / library.fps * fps) + round(STILL_KEPT * fps)
+
+
 def _resume_or_hold(
     out: Motion, source: Motion, first: int, window: int, roles: dict[str, str]
 ) -> tuple[Motion, int | None]:
     """Resume the source over a `window`-frame fade (0: do not resume, as after a fall with nothing
     chained), re-entering at a frame from `first` to a second past where the fade starts (the
     resumed motion stays near the timeline's own time: a walk repeats within a second, and later
-    markers still land where the animator put them); else hold the last pose to the source's end."""
+    markers still land where the animator put them); else hold the last pose. Either way the result
+    runs at least to the source's end (a re-entry up to a second ahead ends that much sooner: the
+    last pose is held)."""
     stop = min(source.num_frames, out.num_frames + round(source.fps))
+    resumed_at = None
     if window and stop - first > window:
-        return _resume(out, source, (first, stop), window, roles)
-    missing = source.num_frames - out.num_frames
+        out, resumed_at = _resume(out, source, (first, stop), window, roles)
+    missing = source.num_frames - out.num_frames  # a bake never shortens the action
     if missing > 0:
         hold = out.slice(out.num_frames - 1, out.num_frames)
         out = _join(out, *([hold] * missing))
-    return out, None
+    return out, resumed_at
 
 
 def _resume(

@@ -181,6 +181,36 @@ def test_fast_equals_reference_on_the_pipelines_queries(tmp_path: Path) -> None:
     assert_same(library, queries[0], ["fall_backward_sit"])
 
 
+def test_no_window_reaches_into_a_clips_still_tail(tmp_path: Path) -> None:
+    """The sample step clips recover to a stand and the falls end lying: each has a still tail
+    (every search joint slower than SETTLED_SPEED to its end), no window of the index reaches into
+    it, and the frame before it moves. A pushed walker matched to a stand blended into a held pose."""
+    library = load_library(REPO / "sample_clips", cache_dir=tmp_path / "cache")
+    limits = search_index.window_limits(library)
+    index = library.search_index()
+    ends = library.frame_index[index.starts] + library.window
+    assert np.all(ends <= limits[library.clip_index[index.starts]])
+    world = library.frames.world_positions()
+    for clip, info in enumerate(library.clips):
+        rows = np.flatnonzero(library.clip_index == clip)
+        speed = np.linalg.norm(np.diff(world[rows], axis=0), axis=-1).max(axis=1) * library.fps
+        limit = int(limits[clip])
+        assert limit < info.num_frames, info.name  # every sample reaction ends at rest
+        settled = search_index.SETTLED_SPEED
+        assert speed[limit - 2] >= settled and np.all(speed[limit - 1 :] < settled), info.name
+
+
+def test_a_clip_still_throughout_keeps_its_windows(tmp_path: Path) -> None:
+    """A clip with no motion at all is its own reaction (a stand): all its windows stay."""
+    motion = bvh.read_bvh(REPO / "sample_clips" / "idle.bvh")
+    still = Motion(motion.skeleton, motion.fps, np.repeat(motion.root_pos[:1], 40, axis=0),
+                   np.repeat(motion.local_rot[:1], 40, axis=0))  # fmt: skip
+    (tmp_path / "still.bvh").write_text(bvh.format_bvh(still))
+    write_toml(tmp_path, [{"file": "still.bvh", "class": "sway_balance"}])
+    library = load_library(tmp_path, cache_dir=tmp_path / "cache")
+    assert search_index.window_limits(library)[0] == library.clips[0].num_frames
+
+
 def test_fast_equals_reference_on_unrelated_queries(synthetic, tmp_path: Path) -> None:
     """Queries from clips that are not in the library, at other frame rates."""
     rng = np.random.default_rng(7)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from reactive_anim.core import quat
+from reactive_anim.core.search_index import window_limits
 from reactive_anim.core.window import TABLE2_POSITION_WEIGHTS, TABLE2_ROTATION_WEIGHTS, Query, joint_weights
 
 
@@ -53,11 +54,12 @@ def reference_search(library, query: Query, classes: list[str] | None = None) ->
     """Best flat start frame and its cost, scanning every candidate window one at a time."""
     slugs = list(library.class_ranges) if classes is None else classes
     best_start, best_cost = -1, np.inf
+    limits = window_limits(library)  # which windows are candidates is the index's definition
     for slug in slugs:
         a, b = library.class_ranges[slug]
         for start in range(a, b):
             clip = library.clip_index[start]
-            if library.frame_index[start] + query.window > library.clip_frames[clip]:
+            if library.frame_index[start] + query.window > limits[clip]:
                 continue
             cost = reference_cost(library, start, query)
             if cost < best_cost:

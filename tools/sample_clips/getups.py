@@ -75,7 +75,7 @@ PRONE_GETUP = [
         2.8,
         pose(fwd=-0.22, z=0.55, pelvis_pitch=85.0, spine_pitch=5.0, neck_pitch=-15.0, toe=-55.0),
         hands=(0.32, 0.28, HAND_DOWN, 15.0),
-        feet=(STAND_WIDTH / 2, -0.55, 0.17, 70.0),
+        feet=(STAND_WIDTH / 2, -0.55, 0.18, 70.0),
     ),
     Key(
         3.7,
