@@ -33,6 +33,9 @@ class Skeleton:
     offsets: np.ndarray
     end_sites: dict[int, np.ndarray] = field(default_factory=dict)
     roles: dict[str, str] = field(default_factory=dict)
+    # Joints by depth below the root (the root's level first): forward kinematics goes a level at a
+    # time, a handful of array operations for all of a level's joints instead of one per joint.
+    levels: list[np.ndarray] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self.names = list(self.names)
@@ -50,6 +53,10 @@ class Skeleton:
             raise SkeletonError(f"duplicate joint names: {', '.join(dupes)}")
         if self.parents[0] != -1 or np.any(self.parents[1:] < 0) or np.any(self.parents[1:] >= np.arange(1, count)):
             raise SkeletonError("joints must be ordered root first, each parent before its children")
+        depth = np.zeros(count, dtype=np.int64)
+        for j in range(1, count):
+            depth[j] = depth[self.parents[j]] + 1
+        self.levels = [np.flatnonzero(depth == d) for d in range(int(depth.max()) + 1)]
 
     @property
     def num_joints(self) -> int:
@@ -178,10 +185,10 @@ def forward_kinematics(
     rot = np.empty((frames, count, 4))
     pos[:, 0] = root_pos
     rot[:, 0] = local_rot[:, 0]
-    for j in range(1, count):
-        p = skeleton.parents[j]
-        pos[:, j] = pos[:, p] + quat.rotate(rot[:, p], offsets[:, j])
-        rot[:, j] = quat.mul(rot[:, p], local_rot[:, j])
+    for joints in skeleton.levels[1:]:  # elementwise, so the same bits as joint by joint
+        p = skeleton.parents[joints]
+        pos[:, joints] = pos[:, p] + quat.rotate(rot[:, p], offsets[:, joints])
+        rot[:, joints] = quat.mul(rot[:, p], local_rot[:, joints])
     return pos, rot
 
 
