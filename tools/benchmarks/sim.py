@@ -10,6 +10,7 @@ thread does, so the BC and CD figures exclude making one; that cost is its own f
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import mujoco
@@ -20,7 +21,7 @@ from reactive_anim.core.balance import RootAssist
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.ragdoll import TIMESTEP, build_ragdoll
 from reactive_anim.core.react import ReactionSettings
-from reactive_anim.core.simulate import Workspace, simulate_impact, state_from_mocap, track
+from reactive_anim.core.simulate import SimState, Workspace, simulate_impact, state_from_mocap, track
 from tests.support.mocap import MOCAP, REPO, mocap_files
 from tests.support.tracking import kept_up_seconds
 
@@ -73,18 +74,8 @@ def _bench_clip(label: str, path: Path, use_reference: bool) -> None:
     impact = Impact(frame, ragdoll.roles["chest"], (1.0, 0.0, 0.0), 80.0)
     simulate_impact(ragdoll, motion, impact, window=0.05, workspace=workspace)
     state = state_from_mocap(ragdoll, motion, frame, workspace=workspace)
-    data = mujoco.MjData(workspace.model)
     steps = 150
-
-    def stepping() -> None:
-        data.qpos[:] = state.qpos
-        data.qvel[:] = state.qvel
-        data.mocap_pos[0] = (0.0, 0.0, state.floor)
-        data.ctrl[:] = state.qpos[ragdoll.actuator_qpos]
-        for _ in range(steps):
-            mujoco.mj_step(workspace.model, data)
-
-    per_step = best_of(stepping, RUNS) / steps * 1e6
+    per_step = best_of(_bare_steps(workspace, [(state, steps)]), RUNS) / steps * 1e6
     report("sim", "time per step", per_step, "us", bodies=len(ragdoll.bodies), dof=ragdoll.model.nv, **context)
 
     bc_time = best_of(lambda: simulate_impact(ragdoll, motion, impact, window=0.25, workspace=workspace), RUNS)
@@ -124,6 +115,24 @@ def _bench_tracking_hold() -> None:
                 report("sim", "largest root assist, fraction of body weight", fraction, "", **context)
 
 
+def _bare_steps(workspace: Workspace, runs: list[tuple[SimState, int]]) -> Callable[[], None]:
+    """mj_step alone, `steps` from each state (floor at its ground, servos holding its pose), on the
+    workspace's model (its body offsets and gains set by a run before) with an MjData of its own."""
+    data = mujoco.MjData(workspace.model)
+    actuated = workspace.ragdoll.actuator_qpos
+
+    def stepping() -> None:
+        for state, steps in runs:
+            data.qpos[:] = state.qpos
+            data.qvel[:] = state.qvel
+            data.mocap_pos[0] = (0.0, 0.0, state.floor)
+            data.ctrl[:] = state.qpos[actuated]
+            for _ in range(steps):
+                mujoco.mj_step(workspace.model, data)
+
+    return stepping
+
+
 def _bench_impact_physics() -> None:
     """One impact's physics as a bake runs it (BC 0.25 s, then CD over the transition with the root
     assist, reusing a Workspace) against bare mj_step calls for the same number of steps from the
@@ -144,18 +153,7 @@ def _bench_impact_physics() -> None:
 
     start = state_from_mocap(ragdoll, motion, impact.frame, workspace=workspace)
     runs = [(start, round(settings.reaction_window / TIMESTEP)), (bc.state, round(duration / TIMESTEP))]
-    data = mujoco.MjData(workspace.model)
-
-    def bare() -> None:
-        for state, steps in runs:
-            data.qpos[:] = state.qpos
-            data.qvel[:] = state.qvel
-            data.mocap_pos[0] = (0.0, 0.0, state.floor)
-            data.ctrl[:] = state.qpos[ragdoll.actuator_qpos]
-            for _ in range(steps):
-                mujoco.mj_step(workspace.model, data)
-
-    total, stepping = best_of(physics, RUNS), best_of(bare, RUNS)
+    total, stepping = best_of(physics, RUNS), best_of(_bare_steps(workspace, runs), RUNS)
     context = {"clip": "sample walk", "steps": sum(n for _, n in runs), "timestep": round(TIMESTEP, 6)}
     report("sim", "one impact's physics (BC 0.25 s + CD 0.33 s, assist)", total * 1e3, "ms", **context)
     report("sim", "  bare mj_step, same steps", stepping * 1e3, "ms", **context)
