@@ -84,3 +84,15 @@ def test_the_role_map_is_saved_with_the_armature(empty_scene, tmp_path):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.wm.open_mainfile(filepath=str(path))
     assert role_map.role_overrides(bpy.data.objects["walk"]) == mapping
+
+
+def test_the_role_check_follows_renamed_bones(empty_scene):
+    """The panel's line is kept per rig (it draws on every mouse move): a renamed bone must show at
+    once, and so must its name given back."""
+    rig = walk_with_impacts(empty_scene)
+    settings.scene_settings(empty_scene).character = rig
+    assert role_map.check_roles(rig) == "Every role has its bone"
+    rig.data.bones[SAMPLE["knee_l"]].name = "opaque"
+    assert role_map.check_roles(rig).startswith("Missing: ") and "knee_l" in role_map.check_roles(rig)
+    rig.data.bones["opaque"].name = SAMPLE["knee_l"]
+    assert role_map.check_roles(rig) == "Every role has its bone"
