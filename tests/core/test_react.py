@@ -12,7 +12,7 @@ from reactive_anim.core.classifier import load_classifier
 from reactive_anim.core.errors import Cancelled, ImpactError, LibraryError
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.library import load_library
-from reactive_anim.core.react import ReactionSettings, bake_reactions, character_ragdoll, react
+from reactive_anim.core.react import STILL_KEPT, ReactionSettings, bake_reactions, character_ragdoll, react
 from tests.support.mocap import REPO
 from tests.support.poses import ground_axes
 
@@ -81,6 +81,25 @@ def test_a_fall_chains_its_get_up_and_a_stumble_resumes_the_walk(walk, library, 
         speed = np.linalg.norm(np.diff(r.motion.root_pos[r.frame_f :], axis=0), axis=1) * walk.fps
         assert speed.max() < 4.0, "a root jump: the root moved faster than 4 m/s between two frames"
         assert r.motion.num_frames >= walk.num_frames
+
+
+def test_a_reaction_plays_its_clip_and_ends_half_a_second_into_its_still_tail(walk, library, ragdoll) -> None:
+    """Pushes from all around on the walk: no jump lands in a clip's still tail (the clip still
+    moves after E), and the reaction ends 0.5 s into that tail (STILL_KEPT), where the walk
+    resumes or a get-up follows, not after the sample step clips' 2 s stand."""
+    limits = library.search_index().limits
+    for k in range(8):
+        frame = 40 + 20 * k
+        ahead, left = ground_axes(walk, frame)
+        angle = 2.0 * np.pi * k / 8
+        r = react(walk, Impact(frame, "chest", tuple(np.cos(angle) * ahead + np.sin(angle) * left), 90.0),
+                  library, ragdoll=ragdoll)  # fmt: skip
+        clip = library.clips.index(library.clip(r.clip))
+        still = int(limits[clip])
+        assert r.jump_frame + library.window <= still, (r.clip, r.jump_frame, still)
+        if r.chained is None:
+            reaction_end = r.frame_f + round((still - (r.jump_frame + library.window)) / library.fps * walk.fps)
+            assert r.end_frame <= reaction_end + round(STILL_KEPT * walk.fps) + 1, (r.clip, r.end_frame, reaction_end)
 
 
 def test_same_input_same_output(walk, library, ragdoll) -> None:
