@@ -94,7 +94,7 @@ class AssistController:
         fade = min(1.0, max(0.0, (self.assist.fade_end - tilt) / (self.assist.fade_end - self.assist.fade_start)))
         # World angular velocity: the free joint's is in the body frame, rotate it by q.
         wx, wy, wz = (float(v) for v in data.qvel[3:6])
-        spin_x, spin_y = _rotate_xy((qw, qx, qy, qz), (wx, wy, wz))
+        spin_x, spin_y, spin_z = _rotate((qw, qx, qy, qz), (wx, wy, wz))
         height = max(target[2] - floor, 0.1)
         lever = self.weight * height  # toppling stiffness m g h, N·m/rad
         kr = self.assist.tilt_stiffness * lever
@@ -106,7 +106,7 @@ class AssistController:
         torque_x, torque_y = torque_x * factor, torque_y * factor
         spin_inertia = self.mass * (YAW_RADIUS * height) ** 2
         wyaw = 2.0 * math.pi * self.assist.heading_frequency
-        torque_z = spin_inertia * (wyaw * wyaw * rz - 2.0 * wyaw * _rotate_z((qw, qx, qy, qz), (wx, wy, wz)))
+        torque_z = spin_inertia * (wyaw * wyaw * rz - 2.0 * wyaw * spin_z)
         torque_z = max(-cap, min(cap, torque_z)) * fade
         lift = self.kz * (target[2] - float(data.qpos[2])) + self.cz * (rising - float(data.qvel[2]))
         lift = min(max(lift, 0.0), self.assist.lift_fraction * self.weight) * fade
@@ -127,8 +127,8 @@ class AssistController:
         return [float(a[0]), float(a[1]), z, *(float(v) for v in q[3:7])], float(b[2] - a[2]) * fps
 
 
-def _rotate_xy(q: tuple[float, float, float, float], v: tuple[float, float, float]) -> tuple[float, float]:
-    """x and y of the vector v rotated by the unit quaternion q (w, x, y, z)."""
+def _rotate(q: tuple[float, float, float, float], v: tuple[float, float, float]) -> tuple[float, float, float]:
+    """The vector v rotated by the unit quaternion q (w, x, y, z)."""
     qw, qx, qy, qz = q
     vx, vy, vz = v
     # v' = v + 2 w (u x v) + 2 u x (u x v), u = (qx, qy, qz)
@@ -136,12 +136,5 @@ def _rotate_xy(q: tuple[float, float, float, float], v: tuple[float, float, floa
     return (
         vx + 2.0 * (qw * cx + qy * cz - qz * cy),
         vy + 2.0 * (qw * cy + qz * cx - qx * cz),
+        vz + 2.0 * (qw * cz + qx * cy - qy * cx),
     )
-
-
-def _rotate_z(q: tuple[float, float, float, float], v: tuple[float, float, float]) -> float:
-    """z of the vector v rotated by the unit quaternion q (w, x, y, z)."""
-    qw, qx, qy, qz = q
-    vx, vy, vz = v
-    cx, cy, cz = qy * vz - qz * vy, qz * vx - qx * vz, qx * vy - qy * vx
-    return vz + 2.0 * (qw * cz + qx * cy - qy * cx)

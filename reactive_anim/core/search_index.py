@@ -160,19 +160,18 @@ def window_limits(library: IndexedFrames) -> np.ndarray:
     walk, 9 jumped to a step clip's last frame and the reaction was a slide into a held pose. A
     window must end by the clip's last moving frame (some search joint at SETTLED_SPEED or faster);
     a clip still throughout keeps all its windows."""
+    clip, frame = library.clip_index, library.frame_index
+    world = library.frames.world_positions()
+    moving = np.zeros(len(clip), dtype=bool)  # per frame: some joint moved at least that fast into it
+    same_clip = clip[1:] == clip[:-1]
+    moving[1:] = same_clip & (
+        np.linalg.norm(world[1:] - world[:-1], axis=-1).max(axis=1) * library.fps >= SETTLED_SPEED
+    )
+    last_moving = np.full(len(library.clip_frames), -1, dtype=np.int64)
+    np.maximum.at(last_moving, clip[moving], frame[moving])
     limits = np.array(library.clip_frames, dtype=np.int64)
-    frames = library.frames
-    for clip in range(len(limits)):
-        rows = np.flatnonzero(library.clip_index == clip)
-        if len(rows) < 2:
-            continue
-        part = FrameFeatures(frames.pos_local[rows], frames.heading[rows], frames.ground[rows], frames.rot[rows])
-        world = part.world_positions()
-        speed = np.linalg.norm(np.diff(world, axis=0), axis=-1).max(axis=1) * library.fps  # frame k+1
-        moving = np.flatnonzero(speed >= SETTLED_SPEED)
-        last_moving = int(moving[-1]) + 1 if len(moving) else 0
-        if last_moving + 1 >= library.window:
-            limits[clip] = min(limits[clip], last_moving + 1)
+    cut = last_moving + 1 >= library.window
+    limits[cut] = np.minimum(limits[cut], last_moving[cut] + 1)
     return limits
 
 
