@@ -298,7 +298,7 @@ def _motion_from_fcurves(
     _, rest_rot = _rest_frames(armature, bones)
     _, scale, _ = _object_transform(armature)
     basis = _basis_rotations([pose_bones[i].rotation_mode for i in order], channels)
-    local_rot = quat.mul(quat.mul(rest_rot, basis), quat.conj(rest_rot))
+    local_rot = quat.sandwich(rest_rot, basis)
     connected = np.array([b.use_connect for b in bones])
     location = np.where(connected[:, None], 0.0, channels["location"])
     local_pos = skeleton.offsets + scale * quat.rotate(rest_rot, location)
@@ -405,7 +405,7 @@ def write_motion(armature: bpy.types.Object, motion: Motion, name: str, frame_st
     heads, rest_rot = _rest_frames(armature, bones)
     _, scale, _ = _object_transform(armature)
     b = rest_rot[joints]  # (J, 4)
-    basis_rot = quat.make_continuous(quat.mul(quat.mul(quat.conj(b), motion.local_rot), b))
+    basis_rot = quat.make_continuous(quat.sandwich(quat.conj(b), motion.local_rot))
     rest_offsets = heads[joints].copy()
     rest_offsets[1:] -= heads[joints][motion.skeleton.parents[1:]]
     translation = motion.joint_offsets().copy()
@@ -418,15 +418,17 @@ def write_motion(armature: bpy.types.Object, motion: Motion, name: str, frame_st
     action = bpy.data.actions.new(name)
     new_fcurve = _fcurve_factory(action, armature)
     frames = frame_start + np.arange(motion.num_frames, dtype=np.float64)
+    loc_keys, rot_keys = _key_points(frames, basis_loc), _key_points(frames, basis_rot)
+    linear = np.full(motion.num_frames, _LINEAR, dtype=np.uint8)
     names = motion.skeleton.names
     for j, bone_name in enumerate(names):
         path = f'pose.bones["{bpy.utils.escape_identifier(bone_name)}"]'
         if j in keyed_loc:
             k = keyed_loc.index(j)
             for axis in range(3):
-                _set_keys(new_fcurve(path + ".location", axis, bone_name), frames, basis_loc[:, k, axis])
+                _set_keys(new_fcurve(path + ".location", axis, bone_name), loc_keys[k, axis], linear)
         for axis in range(4):
-            _set_keys(new_fcurve(path + ".rotation_quaternion", axis, bone_name), frames, basis_rot[:, j, axis])
+            _set_keys(new_fcurve(path + ".rotation_quaternion", axis, bone_name), rot_keys[j, axis], linear)
     for bone_name in names:
         armature.pose.bones[bone_name].rotation_mode = "QUATERNION"
     return action
@@ -449,8 +451,17 @@ def _joint_bones(armature: bpy.types.Object, skeleton: Skeleton, bones: list[bpy
     return [index[n] for n in skeleton.names]
 
 
-def _set_keys(fcurve: bpy.types.FCurve, frames: np.ndarray, values: np.ndarray) -> None:
-    """All keys of one curve in bulk calls; linear interpolation (one key per frame).
+def _key_points(frames: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Keyframe coordinates of every curve at once, (J, axes, 2 T) float32, each row the (frame,
+    value) pairs `foreach_set("co")` takes: one conversion for all curves, not one per curve."""
+    co = np.empty((values.shape[1], values.shape[2], len(frames), 2), dtype=np.float32)
+    co[..., 0] = frames
+    co[..., 1] = values.transpose(1, 2, 0)
+    return co.reshape(values.shape[1], values.shape[2], -1)
+
+
+def _set_keys(fcurve: bpy.types.FCurve, co: np.ndarray, interpolation: np.ndarray) -> None:
+    """All keys of one curve in bulk calls (co: _key_points' row; interpolation: linear, one key per frame).
 
     The keys come in frame order, so nothing needs sorting, and their Bézier handles are left where
     `keyframe_points.add` puts them, as Blender's own BVH importer leaves them: linear segments never
@@ -458,11 +469,10 @@ def _set_keys(fcurve: bpy.types.FCurve, frames: np.ndarray, values: np.ndarray) 
     here (fcurve.update) would take longer than writing the keys.
     """
     points = fcurve.keyframe_points
-    points.add(len(frames))
-    co = np.column_stack([frames, values]).astype(np.float32).ravel()
+    points.add(len(interpolation))
     # An ndarray is a buffer, but numpy 1.26's stubs declare __buffer__ only for Python 3.12+.
     points.foreach_set("co", co)  # pyright: ignore[reportArgumentType]
-    points.foreach_set("interpolation", np.full(len(frames), _LINEAR, dtype=np.uint8))  # pyright: ignore[reportArgumentType]
+    points.foreach_set("interpolation", interpolation)  # pyright: ignore[reportArgumentType]
 
 
 def _fcurve_factory(

@@ -366,7 +366,9 @@ def _locate_motion_error(numbered: list[tuple[int, str]], columns: int, label: s
 def parse_bvh(source: str | Path | bytes, name: str | None = None) -> BVHData:
     """Check and parse a BVH file (path or bytes) without converting units or axes."""
     label, text = _read_source(source, name)
-    lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+    if "\r" in text:  # one scan; the two replacements would copy the whole text twice
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    lines = text.split("\n")
     # Problems found at the end of the file are reported at its last line with text on it.
     last_line = max((n for n, line in enumerate(lines, 1) if line.strip()), default=1)
     motion_at = _find_motion_line(lines)
@@ -432,8 +434,11 @@ def to_motion(data: BVHData, unit: str | float = "auto", up: str = "Y") -> Motio
         joints = [j for j, ch in enumerate(data.channels) if ch.rotation == order]
         columns = [data.channels[j].rotation_columns for j in joints]
         local_rot[:, joints] = quat.from_euler(np.radians(data.values[:, columns]), order)
-    # Change of axes: conjugate rotations, rotate vectors.
-    local_rot = quat.mul(quat.mul(axis_q, local_rot), quat.conj(axis_q))
+    # Change of axes: conjugate rotations (a turn about X before and after: mul's values, fewer
+    # products), rotate vectors.
+    if up.upper() == "Y":
+        c, s = _Y_TO_Z[0], _Y_TO_Z[1]
+        local_rot = quat.turn_after(quat.turn_before(local_rot, 0, c, s), 0, c, -s)
     positions = quat.rotate(axis_q, positions)
     end_sites = {j: quat.rotate(axis_q, off * scale) for j, off in data.end_sites.items()}
     skeleton = Skeleton(data.names, np.asarray(data.parents), quat.rotate(axis_q, offsets), end_sites)

@@ -96,20 +96,26 @@ def _axis_index(order: str) -> list[int]:
 def from_euler(angles: ArrayLike, order: str) -> np.ndarray:
     """Quaternions from Euler angles in radians `(..., len(order))`, composed left to right.
 
-    `order` may name one to three distinct axes (a BVH joint may animate fewer than three). Each
-    step is mul(q, from_axis_angle(axis, angle)) with the products by the axis' zero components
-    left out (the same value: they add exact zeros), at a third of the cost.
+    `order` may name one to three distinct axes (a BVH joint may animate fewer than three). The
+    first axis' turn is the start (the identity turned by it); each further step is
+    mul(q, from_axis_angle(axis, angle)) written as `turn_after`, at a third of the cost.
     """
     angles = np.asarray(angles, dtype=float)
-    q = identity(angles.shape[:-1])
-    for k, axis_name in enumerate(order.upper()):
-        q = _turn_about_axis(q, AXES.index(axis_name), 0.5 * angles[..., k])
+    axes = [AXES.index(a) for a in order.upper()]
+    if not axes:
+        return identity(angles.shape[:-1])
+    half = 0.5 * angles
+    q = np.zeros(angles.shape[:-1] + (4,))
+    q[..., 0], q[..., 1 + axes[0]] = np.cos(half[..., 0]), np.sin(half[..., 0])
+    for k in range(1, len(axes)):
+        q = turn_after(q, axes[k], np.cos(half[..., k]), np.sin(half[..., k]))
     return q
 
 
-def _turn_about_axis(q: np.ndarray, axis: int, half: np.ndarray) -> np.ndarray:
-    """mul(q, (cos half, sin half * e_axis)): q followed by a turn about a coordinate axis."""
-    c, s = np.cos(half), np.sin(half)
+def turn_after(q: np.ndarray, axis: int, c: np.ndarray | float, s: np.ndarray | float) -> np.ndarray:
+    """mul(q, (c, s * e_axis)): q followed by a turn about a coordinate axis (c, s: the cosine and
+    sine of half its angle). The products by the turn's zero components are left out: they add
+    exact zeros, so the value is mul's, bit for bit (but for the sign of a zero)."""
     w, v = q[..., 0], [q[..., 1], q[..., 2], q[..., 3]]
     i, j = (axis + 1) % 3, (axis + 2) % 3  # e_axis x e_i = e_j
     out = np.empty(q.shape)
@@ -117,6 +123,18 @@ def _turn_about_axis(q: np.ndarray, axis: int, half: np.ndarray) -> np.ndarray:
     out[..., 1 + axis] = w * s + v[axis] * c
     out[..., 1 + i] = v[i] * c + v[j] * s
     out[..., 1 + j] = v[j] * c - v[i] * s
+    return out
+
+
+def turn_before(q: np.ndarray, axis: int, c: np.ndarray | float, s: np.ndarray | float) -> np.ndarray:
+    """mul((c, s * e_axis), q): a turn about a coordinate axis after q, as `turn_after` does it."""
+    w, v = q[..., 0], [q[..., 1], q[..., 2], q[..., 3]]
+    i, j = (axis + 1) % 3, (axis + 2) % 3
+    out = np.empty(q.shape)
+    out[..., 0] = c * w - s * v[axis]
+    out[..., 1 + axis] = c * v[axis] + s * w
+    out[..., 1 + i] = c * v[i] - s * v[j]
+    out[..., 1 + j] = c * v[j] + s * v[i]
     return out
 
 
@@ -154,6 +172,21 @@ def to_matrix(q: ArrayLike) -> np.ndarray:
     m[..., 2, 1] = 2 * (y * z + w * x)
     m[..., 2, 2] = 1 - 2 * (x * x + y * y)
     return m
+
+
+def sandwich(r: ArrayLike, q: ArrayLike) -> np.ndarray:
+    """r q r^-1 for unit `r`: the rotation `q` carried into the frame that `r` turns to (same angle,
+    its axis turned by r). A matrix on the vector part: 15 products and sums a quaternion where
+    mul(mul(r, q), conj(r)) takes 56, for the long per-bone conversions of action I/O. Equal to
+    that to rounding, not bit for bit."""
+    r, q = np.asarray(r, dtype=float), np.asarray(q, dtype=float)
+    m = to_matrix(r)
+    x, y, z = q[..., 1], q[..., 2], q[..., 3]
+    out = np.empty(_shape(r, q))
+    out[..., 0] = q[..., 0]
+    for a in range(3):
+        out[..., 1 + a] = m[..., a, 0] * x + m[..., a, 1] * y + m[..., a, 2] * z
+    return out
 
 
 def from_matrix(m: ArrayLike) -> np.ndarray:

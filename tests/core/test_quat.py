@@ -63,6 +63,14 @@ def test_mul_broadcasts_over_leading_axes(rng):
     np.testing.assert_allclose(quat.mul(a, b)[1, 2], quat.mul(a[1, 2], b[2]), atol=1e-15)
 
 
+def test_sandwich_is_the_product_with_the_inverse_broadcast_over_frames(rng):
+    """Per-joint rest rotations (J,) over frames of joints (T, J): as action I/O uses it."""
+    r = random_quats(rng, 5)
+    q = random_quats(rng, 40).reshape(8, 5, 4)
+    np.testing.assert_allclose(quat.sandwich(r, q), quat.mul(quat.mul(r, q), quat.conj(r)), atol=1e-12)
+    np.testing.assert_allclose(quat.sandwich(quat.conj(r), quat.sandwich(r, q)), q, atol=1e-12)
+
+
 def test_rotate_agrees_with_to_matrix(rng):
     q = random_quats(rng, 40)
     v = rng.normal(size=(40, 3))
