@@ -11,14 +11,14 @@ Conventions matched to Blender's bundled importer (io_anim_bvh), so the two agre
   position component counts as 0; the root without position channels sits at its OFFSET;
 - Y-up files are turned Z-up by +90 degrees about X: (x, y, z) -> (x, -z, y).
 
-The motion block is parsed in one vectorised pass (`np.fromstring`); a slow per-line pass runs only
+The motion block is parsed in one vectorised pass (`np.loadtxt`); a slow per-line pass runs only
 to locate an error.
 """
 
 from __future__ import annotations
 
+import io
 import re
-import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,6 +41,7 @@ _ROTATION = {"xrotation": "X", "yrotation": "Y", "zrotation": "Z"}
 _NUMBER = re.compile(r"[+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|nan|inf|infinity)", re.IGNORECASE)
 # The separators of numbers on a motion line (what both str.split and numpy take as whitespace).
 _SPACES = re.compile(r"[ \t\v\f]+")
+_OTHER_SPACES = "\x1c\x1d\x1e\x1f"  # ASCII that str.isspace (and loadtxt) take for spaces, a BVH does not
 # +90 degrees about X: turns a Y-up file Z-up.
 _Y_TO_Z = quat.from_axis_angle(np.array([1.0, 0.0, 0.0]), np.pi / 2)
 
@@ -306,48 +307,41 @@ def _motion_values(
             label,
             numbered[frames][0],
         )
-    values = _fast_floats(" ".join(text for _, text in numbered))
-    if values.size == len(numbered) * columns:
-        values = values.reshape(len(numbered), columns)
-        if _line_counts_match(numbered, columns):
-            bad = np.flatnonzero(~np.isfinite(values).all(axis=1))
-            if bad.size:
-                row = int(bad[0])
-                col = int(np.flatnonzero(~np.isfinite(values[row]))[0])
-                raise BVHError(f"value {col + 1} is not a finite number ({values[row, col]})", label, numbered[row][0])
-            if len(numbered) < frames:
-                last = numbered[-1][0] if numbered else frames_line
-                raise BVHError(
-                    f"the motion is truncated: 'Frames: {frames}' (line {frames_line}) "
-                    f"but only {len(numbered)} frame lines",
-                    label,
-                    last,
-                )
-            return values
+    values = _number_table(numbered, columns)
+    if values is not None:
+        bad = np.flatnonzero(~np.isfinite(values).all(axis=1))
+        if bad.size:
+            row = int(bad[0])
+            col = int(np.flatnonzero(~np.isfinite(values[row]))[0])
+            raise BVHError(f"value {col + 1} is not a finite number ({values[row, col]})", label, numbered[row][0])
+        if len(numbered) < frames:
+            last = numbered[-1][0] if numbered else frames_line
+            raise BVHError(
+                f"the motion is truncated: 'Frames: {frames}' (line {frames_line}) "
+                f"but only {len(numbered)} frame lines",
+                label,
+                last,
+            )
+        return values
     _locate_motion_error(numbered, columns, label)
     raise BVHError("the motion block cannot be read as numbers", label, numbered[0][0] if numbered else frames_line)
 
 
-def _fast_floats(text: str) -> np.ndarray:
-    """All numbers in `text` in one C pass; stops early (fewer values) at a non-numeric token."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)  # numpy warns when it stops early
-        try:
-            return np.fromstring(text, dtype=np.float64, sep=" ")
-        except ValueError:  # newer numpy raises instead of stopping early
-            return np.empty(0)
-
-
-def _line_counts_match(numbered: list[tuple[int, str]], columns: int) -> bool:
-    """Exact per-line token count, vectorised over the whole block's bytes."""
+def _number_table(numbered: list[tuple[int, str]], columns: int) -> np.ndarray | None:
+    """The lines as a (lines, columns) array in one C pass, or None where they cannot be read so
+    (a token that is not a number, a line with another count of values). numpy's loadtxt checks
+    every line's count as it parses; it is also faster than fromstring on the joined text (58
+    against 63 ms on the largest shared file) and gives the same numbers bit for bit."""
     if not numbered:
-        return True
-    blob = np.frombuffer("\n".join(text for _, text in numbered).encode(), dtype=np.uint8)
-    space = blob <= 32  # ASCII whitespace and control bytes separate tokens, as str.split does
-    starts = np.flatnonzero(~space & np.concatenate([[True], space[:-1]]))
-    bounds = np.concatenate([[0], np.flatnonzero(blob == 10) + 1, [blob.size]])
-    counts = np.diff(np.searchsorted(starts, bounds))
-    return bool(np.all(counts == columns))
+        return np.empty((0, columns))
+    block = "\n".join(text for _, text in numbered)
+    if not block.isascii() or any(c in block for c in _OTHER_SPACES):
+        return None  # loadtxt would split there too; the per-line pass names the character
+    try:
+        values = np.loadtxt(io.StringIO(block), dtype=np.float64, comments=None, ndmin=2)
+    except ValueError:
+        return None
+    return values if values.shape == (len(numbered), columns) else None
 
 
 def _locate_motion_error(numbered: list[tuple[int, str]], columns: int, label: str) -> None:
@@ -422,13 +416,17 @@ def to_motion(data: BVHData, unit: str | float = "auto", up: str = "Y") -> Motio
     count, frames = len(data.names), data.num_frames
     offsets = data.offsets * scale
     local_rot = quat.identity((frames, count))
-    positions = np.broadcast_to(offsets, (frames, count, 3)).copy()
-    animated_pos = False
-    for j, ch in enumerate(data.channels):
-        if ch.position:
-            positions[:, j] = 0.0
-            positions[:, j, ch.position] = data.values[:, ch.position_columns] * scale
-            animated_pos = animated_pos or j > 0
+    # Positions: the rest offsets, where a joint has position channels its channels (the others 0);
+    # every joint's kept only where a joint below the root moves, else the root's alone.
+    rest = quat.rotate(axis_q, offsets)
+    moving = [(j, ch) for j, ch in enumerate(data.channels) if ch.position]
+    animated_pos = any(j > 0 for j, _ in moving)
+    kept = count if animated_pos else 1
+    positions = np.broadcast_to(rest[:kept], (frames, kept, 3)).copy()
+    for j, ch in moving:
+        raw = np.zeros((frames, 3))
+        raw[:, ch.position] = data.values[:, ch.position_columns] * scale
+        positions[:, j] = quat.rotate(axis_q, raw)
     # Rotations: one vectorised conversion per distinct rotation order (usually one for all joints).
     for order in {ch.rotation for ch in data.channels if ch.rotation}:
         joints = [j for j, ch in enumerate(data.channels) if ch.rotation == order]
@@ -439,9 +437,8 @@ def to_motion(data: BVHData, unit: str | float = "auto", up: str = "Y") -> Motio
     if up.upper() == "Y":
         c, s = _Y_TO_Z[0], _Y_TO_Z[1]
         local_rot = quat.turn_after(quat.turn_before(local_rot, 0, c, s), 0, c, -s)
-    positions = quat.rotate(axis_q, positions)
     end_sites = {j: quat.rotate(axis_q, off * scale) for j, off in data.end_sites.items()}
-    skeleton = Skeleton(data.names, np.asarray(data.parents), quat.rotate(axis_q, offsets), end_sites)
+    skeleton = Skeleton(data.names, np.asarray(data.parents), rest, end_sites)
     return Motion(
         skeleton=skeleton,
         fps=1.0 / data.frame_time,

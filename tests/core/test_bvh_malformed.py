@@ -84,6 +84,7 @@ CASES = {
     "values_shifted_between_lines.bvh": (24, "expected 12 values (one per channel), found 13"),
     "comma_separated_values.bvh": (24, "expected 12 values (one per channel), found 1"),
     "no_break_space_between_values.bvh": (24, "expected 12 values (one per channel), found 11"),
+    "unit_separator_between_values.bvh": (24, "expected 12 values (one per channel), found 11"),
     "non_numeric_value.bvh": (24, "value 3: 'abc' is not a number"),
     "underscore_in_number.bvh": (25, "value 2: '9_0' is not a number"),
     "nan_value.bvh": (25, "value 4 is not a finite number (nan)"),
