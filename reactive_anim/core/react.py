@@ -10,7 +10,8 @@ For an impact at B on a playing motion:
   CD  PD servos track theta_blend from C: the motion the character was playing, faded into the clip
       from E (blend.py), so the body moves toward the clip while physics keeps the hit's momentum;
   CF  the simulated CD is faded into the clip's E..F (root lerp, joint slerp); at F the pose is the
-      clip's exactly, and the clip plays on from there, placed where the character is.
+      clip's (exactly, but for legs that hold a planted foot: see Feet below), and the clip plays on
+      from there, placed where the character is.
 What we add beyond the paper, and why:
 - A clip whose library entry names a `next` clip (a get-up after a fall, paper Fig. 3) is followed
   by it, placed where the fall ends and faded in over `chain_blend`.
@@ -19,6 +20,8 @@ What we add beyond the paper, and why:
   walker who stumbles walks on. A reaction that ends lying down holds its last pose.
 - Several impacts: each starts from the motion as already reacted at its frame (Fig. 4), so a hit
   that lands during an earlier reaction reacts from that reaction.
+- Feet: a planted foot keeps its footprint from the impact to the reaction's end, where the
+  stitched sources would slide it (footing.py).
 - Impact frames are on the output's clock (the baked action's timeline); the output keeps the
   original's frames before the first impact bit for bit.
 """
@@ -37,6 +40,7 @@ from .blend import blend, fade_weights, place
 from .casting import Casting
 from .classes import CLASS_SLUGS
 from .errors import Cancelled, ImpactError, LibraryError, SkeletonError
+from .footing import hold_feet
 from .impact import Impact
 from .library import Library
 from .ragdoll import Ragdoll, build_ragdoll
@@ -74,6 +78,8 @@ class ReactionSettings:
     assist: the root assist that keeps the body up during CD (balance.py), None for the paper's
       pure PD tracking [RootAssist(): lift at most 0.3 of body weight, torques at most 0.4 m g h, let go
       past 20-40 degrees of tilt].
+    hold_feet: planted feet keep their footprints from the impact to the reaction's end (footing.py)
+      [True; False leaves the feet where the stitched sources put them, sliding].
     """
 
     reaction_window: float = 0.25
@@ -84,6 +90,7 @@ class ReactionSettings:
     resume: bool = True
     chain_blend: float = 0.2
     assist: RootAssist | None = field(default_factory=RootAssist)
+    hold_feet: bool = True
 
 
 class ReactionClassifier(Protocol):
@@ -211,6 +218,8 @@ def react(
     standing = chained is not None or not match.reaction_class.startswith("fall_")
     window = max(2, round(library.window * motion.fps / library.fps)) if settings.resume and standing else 0
     out, resumed_at = _resume_or_hold(out, source or motion, int(np.ceil(impact.frame)), window, ragdoll.roles)
+    if settings.hold_feet:
+        out = hold_feet(out, ragdoll.roles, int(np.ceil(impact.frame)) + 1, end_frame + 1)  # B's own pose stays
     clock.lap("splice")
     return Reaction(
         impact=impact,

@@ -164,7 +164,7 @@ def _between(target: Skeleton, joint: int, child: int, role_joints: set[int]) ->
     this role to the next, so the chain curves as the source's does instead of kinking at one joint."""
     if child < 0 or child not in role_joints:
         return []
-    chain = _path(target, joint, child)[::-1]  # joint, ..., child
+    chain = joint_path(target, joint, child)[::-1]  # joint, ..., child
     if chain[0] != joint or len(chain) < 3:
         return []
     rest = target.rest_positions()
@@ -428,18 +428,23 @@ def _plant_feet(
         goal[:, 2] = np.maximum(goal[:, 2], ankle[:, 2] + below)
         moved = ((weight > 0.0) | (below > 0.0)).astype(float)
         joints = (target_roles[f"hip_{s}"], target_roles[f"knee_{s}"], ankle_t)
-        _two_bone_ik(mapping.target, pos, glob, joints, goal, moved, left, forward)
+        two_bone_ik(mapping.target, pos, glob, joints, goal, moved, left, forward)
     return Motion(skeleton=out.skeleton, fps=out.fps, root_pos=root_pos, local_rot=_locals(mapping.target, glob))
 
 
 def lowest_foot_point(skeleton: Skeleton, ankle: int, positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
     """(T,) height of a foot's lowest point: the ankle, the joints below it and their end sites."""
-    below = [j for j in range(skeleton.num_joints) if ankle in _path(skeleton, ankle, j)]
-    heights = [positions[:, j, 2] for j in below]
+    return foot_points(skeleton, ankle, positions, rotations)[..., 2].min(axis=1)
+
+
+def foot_points(skeleton: Skeleton, ankle: int, positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+    """(T, P, 3) a foot's points: the ankle, the joints below it and their end sites."""
+    below = [j for j in range(skeleton.num_joints) if ankle in joint_path(skeleton, ankle, j)]
+    points = [positions[:, j] for j in below]
     for j in below:
         if j in skeleton.end_sites:
-            heights.append(positions[:, j, 2] + quat.rotate(rotations[:, j], skeleton.end_sites[j])[:, 2])
-    return np.min(heights, axis=0)
+            points.append(positions[:, j] + quat.rotate(rotations[:, j], skeleton.end_sites[j]))
+    return np.stack(points, axis=1)
 
 
 def _planted_track(goal: np.ndarray, source: np.ndarray, down: np.ndarray) -> np.ndarray:
@@ -465,7 +470,7 @@ def _eased(down: np.ndarray) -> np.ndarray:
     return weight
 
 
-def _two_bone_ik(
+def two_bone_ik(
     skeleton: Skeleton,
     pos: np.ndarray,
     glob: np.ndarray,
@@ -505,7 +510,7 @@ def _two_bone_ik(
     new_a = k + shin_dir * shin[:, None]
     swing = arc(_unit(new_a - h), _unit(target - h))
     foot = glob[t, ankle].copy()
-    chain = _path(skeleton, hip, ankle)  # ankle, ..., knee, ..., hip
+    chain = joint_path(skeleton, hip, ankle)  # ankle, ..., knee, ..., hip
     for j in chain[1 : chain.index(knee) + 1]:  # the shin's joints: bent, then swung
         glob[t, j] = quat.mul(swing, quat.mul(turn_knee, glob[t, j]))
     for j in chain[chain.index(knee) + 1 :]:  # the thigh's: swung
@@ -515,7 +520,7 @@ def _two_bone_ik(
     pos[t, ankle] = h + quat.rotate(swing, new_a - h)
 
 
-def _path(skeleton: Skeleton, top: int, bottom: int) -> list[int]:
+def joint_path(skeleton: Skeleton, top: int, bottom: int) -> list[int]:
     """Joints from `bottom` up to `top`, both included."""
     chain = [bottom]
     while chain[-1] != top and skeleton.parents[chain[-1]] >= 0:

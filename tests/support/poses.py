@@ -1,11 +1,12 @@
-"""Where a character faces in a motion, for aiming pushes in tests and benchmarks."""
+"""Where a character faces in a motion, for aiming pushes in tests and benchmarks; which joints are its legs."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from reactive_anim.core.retarget import joint_path
 from reactive_anim.core.roles import assign_roles
-from reactive_anim.core.skeleton import Motion
+from reactive_anim.core.skeleton import Motion, Skeleton
 
 UP = np.array([0.0, 0.0, 1.0])
 
@@ -20,3 +21,10 @@ def ground_axes(motion: Motion, frame: float, roles: dict[str, str] | None = Non
     left[2] = 0.0
     left /= np.linalg.norm(left)
     return np.cross(left, UP), left
+
+
+def leg_joints(skeleton: Skeleton) -> list[int]:
+    """Every joint from the hips down (what the feet hold, core/footing.py, may turn)."""
+    roles = skeleton.roles or assign_roles(skeleton)
+    hips = {skeleton.index(roles[f"hip_{s}"]) for s in "lr"}
+    return [j for j in range(skeleton.num_joints) if hips & set(joint_path(skeleton, 0, j))]

@@ -1,0 +1,120 @@
+"""Planted feet held across a reaction's seams (core/footing.py), on the project's own clips.
+
+- A standing body dragged along the floor keeps its feet where they stood, up to the hold's limit;
+  beyond it the feet slide the rest; frames before the range and after it are untouched.
+- Reactions on the sample walk slide their feet less than half as far as without the hold.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from reactive_anim.core import bvh
+from reactive_anim.core.classifier import load_classifier
+from reactive_anim.core.footing import MAX_OFFSET, SETTLE, hold_feet
+from reactive_anim.core.impact import Impact
+from reactive_anim.core.library import load_library
+from reactive_anim.core.react import ReactionSettings, character_ragdoll, react
+from reactive_anim.core.retarget import foot_points, leg_length
+from reactive_anim.core.roles import assign_roles
+from reactive_anim.core.skeleton import Motion
+from tests.support.mocap import REPO
+from tests.support.poses import ground_axes
+
+IDLE = bvh.read_bvh(REPO / "sample_clips" / "idle.bvh")
+WALK = bvh.read_bvh(REPO / "sample_clips" / "walk.bvh")
+ROLES = assign_roles(IDLE.skeleton)
+START, FRAMES = 60, 30  # the drag: frames 60..89
+
+
+def dragged(distance: float) -> Motion:
+    """The standing idle with its root pulled `distance` m forward (x) over FRAMES frames from START."""
+    drag = np.zeros_like(IDLE.root_pos)
+    drag[:, 0] = np.clip(np.arange(IDLE.num_frames) - START, 0, FRAMES) * distance / FRAMES
+    return replace(IDLE, root_pos=IDLE.root_pos + drag)
+
+
+def contact_points(motion: Motion, side: str) -> np.ndarray:
+    """(T, 3) the lowest point of a foot per frame."""
+    pos, rot = motion.global_transforms()
+    points = foot_points(motion.skeleton, motion.skeleton.index(ROLES[f"ankle_{side}"]), pos, rot)
+    return points[np.arange(len(points)), points[..., 2].argmin(axis=1)]
+
+
+def sliding(motion: Motion, first: int, last: int, floor: float) -> float:
+    """Metres a foot's contact point travels along the floor over first..last while it touches
+    (within 1 cm) and stays the same point, both feet summed: what an animator sees skate."""
+    pos, rot = motion.global_transforms()
+    total = 0.0
+    for side in "lr":
+        points = foot_points(motion.skeleton, motion.skeleton.index(ROLES[f"ankle_{side}"]), pos, rot)[first : last + 1]
+        lowest = points[..., 2].argmin(axis=1)
+        point = points[np.arange(len(points)), lowest]
+        touching = point[:, 2] < floor + 0.01
+        steady = touching[1:] & touching[:-1] & (lowest[1:] == lowest[:-1])
+        total += float(np.sum(np.linalg.norm(np.diff(point[:, :2], axis=0), axis=1) * steady))
+    return total
+
+
+def test_a_dragged_stance_keeps_its_footprints_and_the_rest_is_untouched():
+    """Dragged 9 cm (within the hold), the feet stay within 5 mm of where they stood, where
+    unheld they go along; the frames before the range are the input's bit for bit, and so are
+    those after the hold is let go."""
+    moved = dragged(0.09)
+    last = START + FRAMES
+    held = hold_feet(moved, ROLES, START, last)
+    for side in "lr":
+        before, after = contact_points(moved, side), contact_points(held, side)
+        assert np.linalg.norm(before[last, :2] - before[START - 1, :2]) > 0.085
+        assert np.linalg.norm(after[START:last, :2] - after[START - 1, :2], axis=1).max() < 0.005
+    assert np.array_equal(held.local_rot[:START], moved.local_rot[:START])
+    settled = last + round(SETTLE * IDLE.fps)
+    assert np.array_equal(held.local_rot[settled:], moved.local_rot[settled:])
+    assert np.array_equal(held.root_pos, moved.root_pos)
+
+
+def test_a_drag_beyond_the_hold_slides_the_feet_by_the_rest():
+    """Dragged 30 cm, the feet are held back by at most MAX_OFFSET leg lengths (a leg held further
+    would be stretched straight) and slide the rest."""
+    most = MAX_OFFSET * leg_length(IDLE.skeleton, ROLES)
+    moved = dragged(0.30)
+    held = hold_feet(moved, ROLES, START, START + FRAMES)
+    for side in "lr":
+        travel = np.linalg.norm(
+            contact_points(held, side)[START + FRAMES - 1, :2] - contact_points(held, side)[START - 1, :2]
+        )
+        assert travel == pytest.approx(0.30 - most, abs=0.01)
+
+
+@pytest.fixture(scope="module")
+def reactions():
+    library = load_library(REPO / "sample_clips")
+    classifier = load_classifier(REPO / "reactive_anim" / "models" / "reaction_classifier.onnx")
+    ragdoll = character_ragdoll(WALK)
+    out = []
+    for frame, role, towards, strength in [(100, "chest", "front", 80.0), (120, "head", "behind", 50.0),
+                                           (130, "pelvis", "left", 90.0)]:  # fmt: skip
+        forward, left = ground_axes(WALK, frame)
+        direction = {"front": -forward, "behind": forward, "left": -left}[towards]
+        impact = Impact(frame, ROLES[role], tuple(direction), strength)
+        out.append(
+            [
+                react(WALK, impact, library, classifier, ReactionSettings(hold_feet=hold), ragdoll=ragdoll)
+                for hold in (False, True)
+            ]
+        )
+    return out
+
+
+def test_reactions_on_the_walk_slide_their_feet_less_than_half_as_far(reactions):
+    """Measured over B..F + 20 frames (the simulation, the fade into the clip, its first steps) on
+    three pushes: 198 cm without the hold, 59 cm with it when written."""
+    floor = float(np.min([contact_points(WALK, side)[:, 2] for side in "lr"]))
+    without = sum(sliding(r.motion, round(r.frame_b), r.frame_f + 20, floor) for r, _ in reactions)
+    held = sum(sliding(r.motion, round(r.frame_b), r.frame_f + 20, floor) for _, r in reactions)
+    assert held < 0.5 * without, (held, without)
+    for free, kept in reactions:  # the hold changes the feet, not what was chosen
+        assert (kept.reaction_class, kept.clip, kept.jump_frame) == (free.reaction_class, free.clip, free.jump_frame)
