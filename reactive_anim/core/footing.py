@@ -6,13 +6,15 @@ two sources cross-fade while a foot is on the floor, the foot slides from one fo
 other. Measured on nine pushes of the sample walk (contact point of a touching foot, summed over
 C..F): 237 cm, of which the simulation itself slid 87 cm; the fade is the rest.
 
-From the impact on, a foot on the floor keeps its footprint. Each frame the touching foot's
-contact point (its lowest point: heel, ball or toe) moves along the floor is taken back by an
-offset, which the leg's two-bone IK adds to the ankle (the foot keeps its orientation). A foot that
-rolls from heel to toe is not sliding: the frame its lowest point changes keeps the offset. While
-the foot is in the air the offset is let go at up to CATCH_UP_SPEED, so the next footprint lands
-where the motion puts it; what is still left near the end of the range is let go over RELEASE
-frames. Where a leg cannot reach, the IK stretches it straight and the foot slides the rest.
+Where the sources cross-fade (`fades`: C..F, a chained get-up fading in, the resume), the part of
+a standing foot's motion along the floor is taken back by an offset, which the leg's two-bone IK
+adds to the ankle (the foot keeps its orientation). Outside the fades the motion's own steps play
+as they are (a clip's or a get-up's drawn-up heel is meant to slide) and the offset is only carried:
+kept while the foot stands, let go in the air at up to CATCH_UP_SPEED, so the next footprint lands
+where the motion puts it. The hold runs on until every offset is let go (a foot that never lifts
+keeps it to the end of the motion). A foot stands by ramps, not thresholds (see _sliding), so
+a millimetre's difference in the motion moves the result by little. Where a leg cannot reach,
+the offset is capped (MAX_OFFSET) and the foot slides the rest.
 """
 
 from __future__ import annotations
@@ -33,58 +35,88 @@ MAX_OFFSET = 0.15  # leg lengths a foot is held away from where the motion puts 
 FLOOR_PERCENTILE = 2.0  # not the minimum: one frame's dip through the floor must not sink it
 FLOOR_SECONDS = 2.0  # of motion before the impact read for the floor
 MIN_FLOOR_FRAMES = 10  # fewer frames before the impact: the floor is read over the range itself
-SETTLE = 1.0  # s after the stitched part over which a hold is let go (the feet are in the air for part of it)
-RELEASE = 10  # frames over which an offset left at the end of the range is let go
+SETTLE = 1.0  # s after the reaction first looked at for the offsets to be let go (a walker's feet lift in it)
 SIDES = ("l", "r")
 
 
-def hold_feet(motion: Motion, roles: dict[str, str], first: int, last: int) -> Motion:
-    """`motion` with its feet held to their footprints over frames first..last - 1, the stitched
-    part (see the module docstring), and what is left of the hold let go over the SETTLE seconds
-    after (the motion there, such as a resumed walk, is clean: its own slides are not taken back);
-    frames outside are untouched, bit for bit. roles: role -> joint name (hip_l, knee_l, ankle_l,
-    ... pelvis, chest). The floor is where the feet rest: a low percentile of the lower foot's
-    lowest point (a foot is on the floor nearly all the time) before `first`."""
-    first, stitched = max(first, 1), min(last, motion.num_frames) - max(first, 1)
-    last = min(motion.num_frames, first + stitched + round(SETTLE * motion.fps))
-    if stitched < 2:
+def hold_feet(motion: Motion, roles: dict[str, str], first: int, last: int, fades: list[tuple[int, int]]) -> Motion:
+    """`motion` with its feet held (see the module docstring) from frame `first` on: slides taken
+    back within `fades` (frame ranges [a, b)) and carried until let go, looking at least to `last`
+    plus SETTLE. Frames before `first` and after the hold are untouched, bit for bit.
+    roles: role -> joint name (hip_l, knee_l, ankle_l, ... pelvis, chest). The floor is where the
+    feet rest: a low percentile of the lower foot's lowest point before `first` (over the range
+    itself when the motion has fewer than MIN_FLOOR_FRAMES before it)."""
+    first, last = max(first, 1), min(last, motion.num_frames)
+    if last - first < 2:
         return motion
-    span = motion.slice(first - 1, last)  # one frame before: where the first frame's foot came from
+    joint = {role: motion.skeleton.index(name) for role, name in roles.items()}
+    floor = _floor(motion, joint, first) if first >= MIN_FLOOR_FRAMES else None
+    end = min(motion.num_frames, last + round(SETTLE * motion.fps))
+    while True:
+        held = _hold(motion, roles, joint, (first, last, end), fades, floor)
+        if held is None or end == motion.num_frames or not np.abs(held[1][-1]).max() > 1e-6:
+            break
+        end = min(motion.num_frames, end + (end - first))  # a foot still held: look further
+    if held is None:
+        return motion
+    glob, _, moved = held
+    return _with_legs(motion, glob, moved, first)
+
+
+def _hold(
+    motion: Motion,
+    roles: dict[str, str],
+    joint: dict[str, int],
+    frames: tuple[int, int, int],
+    fades: list[tuple[int, int]],
+    floor: float | None,
+) -> tuple[np.ndarray, np.ndarray, list[tuple[list[int], np.ndarray]]] | None:
+    """The global rotations over first - 1..end - 1 with the feet held, the offsets (T, 2, both
+    feet's largest by row) and per leg turned its joints and the rows it turned; None where
+    nothing moves."""
+    first, last, end = frames
+    span = motion.slice(first - 1, end)  # one frame before: where the first frame's foot came from
     skeleton = span.skeleton
-    joint = {role: skeleton.index(name) for role, name in roles.items()}
     pos, glob = span.global_transforms()
     left = pos[:, joint["hip_l"]] - pos[:, joint["hip_r"]]
     forward = np.cross(left, pos[:, joint["chest"]] - pos[:, joint["pelvis"]])
     points = {side: foot_points(skeleton, joint[f"ankle_{side}"], pos, glob) for side in SIDES}
-    floor = _floor(motion, joint, first) if first >= MIN_FLOOR_FRAMES else _lower_foot(points, FLOOR_PERCENTILE)
+    if floor is None:
+        floor = _lower_foot({side: p[: last - first + 1] for side, p in points.items()}, FLOOR_PERCENTILE)
+    fading = np.zeros(len(pos) - 1, dtype=bool)  # per step into frame first + i
+    for a, b in fades:
+        fading[max(a - first, 0) : max(b - first, 0)] = True
     leg = leg_length(skeleton, roles)
-    moved: list[int] = []
+    moved: list[tuple[list[int], np.ndarray]] = []
+    largest = np.zeros((len(pos), 2))
     for side in SIDES:
         ankle = joint[f"ankle_{side}"]
         down, slide = _sliding(points[side], floor, motion.fps)
-        slide[stitched:] = 0.0  # clean motion: its own slides stay
-        offset = _offsets(down, slide, motion.fps, MAX_OFFSET * leg)
-        if not np.abs(offset).max(initial=0.0) > 1e-6:
+        offset = _offsets(down, np.where(fading[:, None], slide, 0.0), motion.fps, MAX_OFFSET * leg)
+        moves = np.abs(offset).max(axis=1) > 1e-6
+        largest = np.where(np.abs(offset) > np.abs(largest), offset, largest)
+        if not moves.any():
             continue
         goal = pos[:, ankle].copy()
         goal[:, :2] += offset
-        weight = (np.abs(offset).max(axis=1) > 1e-6).astype(float)
         chain = (joint[f"hip_{side}"], joint[f"knee_{side}"], ankle)
-        two_bone_ik(skeleton, pos, glob, chain, goal, weight, left, forward)
-        moved += joint_path(skeleton, chain[0], ankle)
-    if not moved:
-        return motion
-    return _with_legs(motion, glob[1:], moved, first, last)
+        two_bone_ik(skeleton, pos, glob, chain, goal, moves.astype(float), left, forward)
+        moved.append((joint_path(skeleton, chain[0], ankle), moves))
+    return (glob, largest, moved) if moved else None
 
 
-def _with_legs(motion: Motion, glob: np.ndarray, joints: list[int], first: int, last: int) -> Motion:
-    """`motion` with the local rotations of `joints` over first..last - 1 taken from global ones,
-    each on the same side of the quaternion sphere as the rotation it replaces."""
-    parents = motion.skeleton.parents[joints]
-    local = quat.normalize(quat.mul(quat.conj(glob[:, parents]), glob[:, joints]))
-    old = motion.local_rot[first:last, joints]
+def _with_legs(motion: Motion, glob: np.ndarray, legs: list[tuple[list[int], np.ndarray]], first: int) -> Motion:
+    """`motion` with each leg's local rotations taken from `glob` (rows from frame first - 1) on
+    the rows its IK turned (the others stay the input's, bit for bit), each on the same side of
+    the quaternion sphere as the rotation it replaces."""
     local_rot = motion.local_rot.copy()
-    local_rot[first:last, joints] = np.where(np.sum(local * old, axis=-1, keepdims=True) < 0.0, -local, local)
+    for joints, rows in legs:
+        frames = first - 1 + np.flatnonzero(rows)
+        turned = glob[np.flatnonzero(rows)]
+        parents = motion.skeleton.parents[joints]
+        local = quat.normalize(quat.mul(quat.conj(turned[:, parents]), turned[:, joints]))
+        old = local_rot[frames][:, joints]
+        local_rot[frames[:, None], joints] = np.where(np.sum(local * old, axis=-1, keepdims=True) < 0.0, -local, local)
     return Motion(skeleton=motion.skeleton, fps=motion.fps, root_pos=motion.root_pos, local_rot=local_rot,
                   local_pos=motion.local_pos)  # fmt: skip
 
@@ -125,7 +157,7 @@ def _sliding(points: np.ndarray, floor: float, fps: float) -> tuple[np.ndarray, 
 def _offsets(down: np.ndarray, slide: np.ndarray, fps: float, most: float) -> np.ndarray:
     """(T, 2) the ankle's ground offset per frame (row 0, the frame before the range, is zero): the
     slide taken back, at most `most` (m; a foot held further would leave its leg stretched out
-    straight); let go in the air (1 - down) at CATCH_UP_SPEED, and over the last RELEASE frames."""
+    straight); let go in the air (1 - down) at CATCH_UP_SPEED."""
     offset = np.zeros((len(slide) + 1, 2))
     catch_up = CATCH_UP_SPEED / fps
     for t in range(1, len(offset)):
@@ -134,6 +166,4 @@ def _offsets(down: np.ndarray, slide: np.ndarray, fps: float, most: float) -> np
         if size > 0.0:
             held *= min(most, max(0.0, size - (1.0 - down[t - 1]) * catch_up)) / size
         offset[t] = held
-    release = min(RELEASE, len(offset) - 1)
-    offset[len(offset) - release :] *= np.linspace(1.0, 0.0, release + 1)[1:, None]
     return offset

@@ -20,8 +20,8 @@ What we add beyond the paper, and why:
   walker who stumbles walks on. A reaction that ends lying down holds its last pose.
 - Several impacts: each starts from the motion as already reacted at its frame (Fig. 4), so a hit
   that lands during an earlier reaction reacts from that reaction.
-- Feet: a planted foot keeps its footprint from the impact to the reaction's end, where the
-  stitched sources would slide it (footing.py).
+- Feet: where the sources cross-fade (C..F, a get-up fading in, the resume), a planted foot keeps
+  its footprint instead of sliding from one source's to the other's (footing.py).
 - Impact frames are on the output's clock (the baked action's timeline); the output keeps the
   original's frames before the first impact bit for bit.
 """
@@ -78,8 +78,8 @@ class ReactionSettings:
     assist: the root assist that keeps the body up during CD (balance.py), None for the paper's
       pure PD tracking [RootAssist(): lift at most 0.3 of body weight, torques at most 0.4 m g h, let go
       past 20-40 degrees of tilt].
-    hold_feet: planted feet keep their footprints from the impact to the reaction's end (footing.py)
-      [True; False leaves the feet where the stitched sources put them, sliding].
+    hold_feet: planted feet keep their footprints where the sources cross-fade (footing.py)
+      [True; False leaves the feet where the fades put them, sliding].
     """
 
     reaction_window: float = 0.25
@@ -213,13 +213,16 @@ def react(
     stop = max(frame_e + steps + 1, _still_from(library, match.clip_index, motion.fps))
     out = _join(before.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, min(stop, clip.num_frames)))
     clock.lap("blend")
-    out, chained = _chain(out, casting, match, ragdoll.roles, settings)
+    out, chained, chain_fade = _chain(out, casting, match, ragdoll.roles, settings)
     end_frame = out.num_frames - 1
     standing = chained is not None or not match.reaction_class.startswith("fall_")
     window = max(2, round(library.window * motion.fps / library.fps)) if settings.resume and standing else 0
     out, resumed_at = _resume_or_hold(out, source or motion, int(np.ceil(impact.frame)), window, ragdoll.roles)
     if settings.hold_feet:
-        out = hold_feet(out, ragdoll.roles, int(np.ceil(impact.frame)) + 1, end_frame + 1)  # B's own pose stays
+        fades = [(frame_c, frame_c + steps + 1), *chain_fade]
+        if resumed_at is not None:
+            fades.append((end_frame - window + 1, end_frame + 1))
+        out = hold_feet(out, ragdoll.roles, int(np.ceil(impact.frame)) + 1, end_frame + 1, fades)  # B's pose stays
     clock.lap("splice")
     return Reaction(
         impact=impact,
@@ -374,11 +377,12 @@ def _search(
 
 def _chain(
     out: Motion, casting: Casting, match: Match, roles: dict[str, str], settings: ReactionSettings
-) -> tuple[Motion, str | None]:
-    """The clip's `next` (a get-up) placed where the reaction ends and faded in."""
+) -> tuple[Motion, str | None, list[tuple[int, int]]]:
+    """The clip's `next` (a get-up) placed where the reaction ends and faded in; its name and the
+    fade's frames [a, b) (none without a get-up)."""
     name = casting.library.clips[match.clip_index].next
     if name is None:
-        return out, None
+        return out, None, []
     fps = out.fps
     follow = casting.clip(name, fps)
     yaw, offset = _alignment(out.slice(out.num_frames - 1, out.num_frames), follow.slice(0, 1), roles)
@@ -387,7 +391,8 @@ def _chain(
     tail = out.slice(out.num_frames - 1, out.num_frames)
     held = _join(*([tail] * overlap))
     faded = blend(held, follow.slice(0, overlap), fade_weights(overlap))
-    return _join(out.slice(0, out.num_frames - 1), faded, follow.slice(overlap, follow.num_frames)), name
+    start = out.num_frames - 1
+    return _join(out.slice(0, start), faded, follow.slice(overlap, follow.num_frames)), name, [(start, start + overlap)]
 
 
 def _still_from(library: Library, clip_index: int, fps: float) -> int:
