@@ -10,7 +10,7 @@ Where the sources cross-fade (`fades`: C..F, a chained get-up fading in, the res
 a standing foot's motion along the floor is taken back by an offset, which the leg's two-bone IK
 adds to the ankle (the foot keeps its orientation). Outside the fades the motion's own steps play
 as they are (a clip's or a get-up's drawn-up heel is meant to slide) and the offset is only carried:
-kept while the foot stands, let go in the air at up to CATCH_UP_SPEED, so the next footprint lands
+kept while the foot stands, let go in the air (CATCH_UP_RATE), so the next footprint lands
 where the motion puts it. The hold runs on until every offset is let go (a foot that never lifts
 keeps it to the end of the motion). A foot stands by ramps, not thresholds (see _sliding), so
 a millimetre's difference in the motion moves the result by little. Where a leg cannot reach,
@@ -30,7 +30,9 @@ CONTACT_BAND = 0.02  # ... this much lower (toe clearance in a walk's swing is a
 LOWEST_SCALE = 0.003  # m: a foot point this much higher than its lowest counts 1/e as much for the slide
 SKIM_SPEED = 3.5  # m/s: a point faster than this does not stand, fully below ...
 SPEED_BAND = 1.0  # ... this much slower (a swing foot moves at 3-5 m/s; a blend slides it at 0.5-2.5)
-CATCH_UP_SPEED = 2.0  # m/s of extra foot travel while in the air (a walk's swing foot moves at 3-5 m/s)
+CATCH_UP_RATE = 12.0  # 1/s: in the air an offset shrinks by this fraction a second, smoothly (83 ms time constant) ...
+CATCH_UP_FINISH = 0.05  # m/s: ... and by this much more, so it ends (the last step is under a millimetre)
+SOFT_REACH = 0.95  # of a leg's length: a held foot asking more of it reaches less, smoothly (_eased_reach)
 MAX_OFFSET = 0.15  # leg lengths a foot is held away from where the motion puts it; beyond, it slides
 FLOOR_PERCENTILE = 2.0  # not the minimum: one frame's dip through the floor must not sink it
 FLOOR_SECONDS = 2.0  # of motion before the impact read for the floor
@@ -100,9 +102,24 @@ def _hold(
         goal = pos[:, ankle].copy()
         goal[:, :2] += offset
         chain = (joint[f"hip_{side}"], joint[f"knee_{side}"], ankle)
+        goal = _eased_reach(goal, *(pos[:, j] for j in chain))
         two_bone_ik(skeleton, pos, glob, chain, goal, moves.astype(float), left, forward)
         moved.append((joint_path(skeleton, chain[0], ankle), moves))
     return (glob, largest, moved) if moved else None
+
+
+def _eased_reach(goal: np.ndarray, hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray) -> np.ndarray:
+    """The goals (T, 3) pulled in where they would straighten the leg past SOFT_REACH of its length
+    (or past the motion's own stretch, where that is more): the last few per cent of a knee's
+    extension turn it fast for a small move of the foot, which shows as a kick of the knee; eased,
+    the foot falls a little short and slides that much instead. Continuous: a goal at the motion's
+    own ankle is left where it is."""
+    length = np.linalg.norm(knee - hip, axis=-1) + np.linalg.norm(ankle - knee, axis=-1)
+    start = np.maximum(SOFT_REACH * length, np.linalg.norm(ankle - hip, axis=-1))
+    room = np.maximum(length - start, 1e-6)
+    distance = np.linalg.norm(goal - hip, axis=-1)
+    eased = np.where(distance > start, start + room * (1.0 - np.exp(-(distance - start) / room)), distance)
+    return hip + (goal - hip) * (eased / np.maximum(distance, 1e-9))[:, None]
 
 
 def _with_legs(motion: Motion, glob: np.ndarray, legs: list[tuple[list[int], np.ndarray]], first: int) -> Motion:
@@ -157,13 +174,15 @@ def _sliding(points: np.ndarray, floor: float, fps: float) -> tuple[np.ndarray, 
 def _offsets(down: np.ndarray, slide: np.ndarray, fps: float, most: float) -> np.ndarray:
     """(T, 2) the ankle's ground offset per frame (row 0, the frame before the range, is zero): the
     slide taken back, at most `most` (m; a foot held further would leave its leg stretched out
-    straight); let go in the air (1 - down) at CATCH_UP_SPEED."""
+    straight); let go in the air (1 - down) at CATCH_UP_RATE, fast while it is large and slowing as
+    it shrinks, so the foot eases onto the motion's path instead of stopping short on it."""
     offset = np.zeros((len(slide) + 1, 2))
-    catch_up = CATCH_UP_SPEED / fps
     for t in range(1, len(offset)):
         held = offset[t - 1] - slide[t - 1]
         size = float(np.linalg.norm(held))
         if size > 0.0:
-            held *= min(most, max(0.0, size - (1.0 - down[t - 1]) * catch_up)) / size
+            air = 1.0 - down[t - 1]
+            let_go = size * np.exp(-air * CATCH_UP_RATE / fps) - air * CATCH_UP_FINISH / fps
+            held *= min(most, max(0.0, let_go)) / size
         offset[t] = held
     return offset

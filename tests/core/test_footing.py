@@ -16,7 +16,7 @@ import pytest
 
 from reactive_anim.core import bvh
 from reactive_anim.core.classifier import load_classifier
-from reactive_anim.core.footing import CATCH_UP_SPEED, MAX_OFFSET, hold_feet
+from reactive_anim.core.footing import CATCH_UP_FINISH, MAX_OFFSET, hold_feet
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.library import load_library
 from reactive_anim.core.react import ReactionSettings, character_ragdoll, react
@@ -97,9 +97,9 @@ def test_a_walkers_hold_is_let_go_in_the_air_and_the_walk_after_is_untouched():
     assert changed.size and changed[0] >= START and changed[-1] < WALK.num_frames - 30
     after = changed[-1] + 1
     assert np.array_equal(held.local_rot[after:], moved.local_rot[after:])
-    for side in "lr":  # the last held frame is one frame's catch-up (in the air) from the motion
+    for side in "lr":  # the hold eases out: its last frame is under a millimetre from the motion
         gap = np.linalg.norm(contact_points(held, side)[after - 1] - contact_points(moved, side)[after - 1])
-        assert gap <= CATCH_UP_SPEED / WALK.fps + 1e-3
+        assert gap <= 2 * CATCH_UP_FINISH / WALK.fps
 
 
 def test_a_drag_beyond_the_hold_slides_the_feet_by_the_rest():
@@ -136,7 +136,7 @@ def reactions():
 
 def test_reactions_on_the_walk_slide_their_feet_less_than_half_as_far(reactions):
     """Measured over B..F + 20 frames (the simulation, the fade into the clip, its first steps) on
-    three pushes: 198 cm without the hold, 81 cm with it when written (most of it in BC, the
+    three pushes: 198 cm without the hold, 82 cm with it when written (most of it in BC, the
     simulation's own slip under the shove, which the hold leaves)."""
     floor = float(np.min([contact_points(WALK, side)[:, 2] for side in "lr"]))
     without = sum(sliding(r.motion, round(r.frame_b), r.frame_f + 20, floor) for r, _ in reactions)
