@@ -14,7 +14,10 @@ kept while the foot stands, let go in the air (CATCH_UP_RATE), so the next footp
 where the motion puts it. The hold runs on until every offset is let go (a foot that never lifts
 keeps it to the end of the motion). A foot stands by ramps, not thresholds (see _sliding), so
 a millimetre's difference in the motion moves the result by little. Where a leg cannot reach,
-the offset is capped (MAX_OFFSET) and the foot slides the rest.
+the offset is capped (MAX_OFFSET) and the foot slides the rest. From the impact to the end of
+the reaction, a foot whose lowest point is under the character's floor (the lowest its feet get
+in its own motion) is also lifted onto it: the ragdoll's soles and the skeleton's toes do not
+quite agree, and toes went up to 4 cm under the floor in transitions.
 """
 
 from __future__ import annotations
@@ -34,25 +37,23 @@ CATCH_UP_RATE = 12.0  # 1/s: in the air an offset shrinks by this fraction a sec
 CATCH_UP_FINISH = 0.05  # m/s: ... and by this much more, so it ends (the last step is under a millimetre)
 SOFT_REACH = 0.95  # of a leg's length: a held foot asking more of it reaches less, smoothly (_eased_reach)
 MAX_OFFSET = 0.15  # leg lengths a foot is held away from where the motion puts it; beyond, it slides
-FLOOR_PERCENTILE = 2.0  # not the minimum: one frame's dip through the floor must not sink it
-FLOOR_SECONDS = 2.0  # of motion before the impact read for the floor
-MIN_FLOOR_FRAMES = 10  # fewer frames before the impact: the floor is read over the range itself
 SETTLE = 1.0  # s after the reaction first looked at for the offsets to be let go (a walker's feet lift in it)
 SIDES = ("l", "r")
 
 
-def hold_feet(motion: Motion, roles: dict[str, str], first: int, last: int, fades: list[tuple[int, int]]) -> Motion:
-    """`motion` with its feet held (see the module docstring) from frame `first` on: slides taken
-    back within `fades` (frame ranges [a, b)) and carried until let go, looking at least to `last`
-    plus SETTLE. Frames before `first` and after the hold are untouched, bit for bit.
-    roles: role -> joint name (hip_l, knee_l, ankle_l, ... pelvis, chest). The floor is where the
-    feet rest: a low percentile of the lower foot's lowest point before `first` (over the range
-    itself when the motion has fewer than MIN_FLOOR_FRAMES before it)."""
-    first, last = max(first, 1), min(last, motion.num_frames)
+def hold_feet(
+    motion: Motion, roles: dict[str, str], frames: tuple[int, int], fades: list[tuple[int, int]], floor: float
+) -> Motion:
+    """`motion` with its feet held (see the module docstring) from frame `first` on, frames =
+    (first, last): slides taken back within `fades` (frame ranges [a, b)) and carried until let go,
+    looking at least to `last` plus SETTLE; feet lifted out of the floor over first..last - 1.
+    Frames before `first` and after the hold are untouched, bit for bit. roles: role -> joint name
+    (hip_l, knee_l, ankle_l, ... pelvis, chest); floor: the height of the character's lowest foot
+    point in its own motion (casting.Casting.sole)."""
+    first, last = max(frames[0], 1), min(frames[1], motion.num_frames)
     if last - first < 2:
         return motion
     joint = {role: motion.skeleton.index(name) for role, name in roles.items()}
-    floor = _floor(motion, joint, first) if first >= MIN_FLOOR_FRAMES else None
     end = min(motion.num_frames, last + round(SETTLE * motion.fps))
     while True:
         held = _hold(motion, roles, joint, (first, last, end), fades, floor)
@@ -71,7 +72,7 @@ def _hold(
     joint: dict[str, int],
     frames: tuple[int, int, int],
     fades: list[tuple[int, int]],
-    floor: float | None,
+    floor: float,
 ) -> tuple[np.ndarray, np.ndarray, list[tuple[list[int], np.ndarray]]] | None:
     """The global rotations over first - 1..end - 1 with the feet held, the offsets (T, 2, both
     feet's largest by row) and per leg turned its joints and the rows it turned; None where
@@ -83,8 +84,6 @@ def _hold(
     left = pos[:, joint["hip_l"]] - pos[:, joint["hip_r"]]
     forward = np.cross(left, pos[:, joint["chest"]] - pos[:, joint["pelvis"]])
     points = {side: foot_points(skeleton, joint[f"ankle_{side}"], pos, glob) for side in SIDES}
-    if floor is None:
-        floor = _lower_foot({side: p[: last - first + 1] for side, p in points.items()}, FLOOR_PERCENTILE)
     fading = np.zeros(len(pos) - 1, dtype=bool)  # per step into frame first + i
     for a, b in fades:
         fading[max(a - first, 0) : max(b - first, 0)] = True
@@ -95,12 +94,16 @@ def _hold(
         ankle = joint[f"ankle_{side}"]
         down, slide = _sliding(points[side], floor, motion.fps)
         offset = _offsets(down, np.where(fading[:, None], slide, 0.0), motion.fps, MAX_OFFSET * leg)
-        moves = np.abs(offset).max(axis=1) > 1e-6
+        lift = np.maximum(floor - points[side][..., 2].min(axis=1), 0.0)  # a foot through the floor
+        lift[0] = 0.0
+        lift[last - first + 1 :] = 0.0  # after the reaction the motion is its own
+        moves = (np.abs(offset).max(axis=1) > 1e-6) | (lift > 1e-6)
         largest = np.where(np.abs(offset) > np.abs(largest), offset, largest)
         if not moves.any():
             continue
         goal = pos[:, ankle].copy()
         goal[:, :2] += offset
+        goal[:, 2] += lift
         chain = (joint[f"hip_{side}"], joint[f"knee_{side}"], ankle)
         goal = _eased_reach(goal, *(pos[:, j] for j in chain))
         two_bone_ik(skeleton, pos, glob, chain, goal, moves.astype(float), left, forward)
@@ -136,20 +139,6 @@ def _with_legs(motion: Motion, glob: np.ndarray, legs: list[tuple[list[int], np.
         local_rot[frames[:, None], joints] = np.where(np.sum(local * old, axis=-1, keepdims=True) < 0.0, -local, local)
     return Motion(skeleton=motion.skeleton, fps=motion.fps, root_pos=motion.root_pos, local_rot=local_rot,
                   local_pos=motion.local_pos)  # fmt: skip
-
-
-def _floor(motion: Motion, joint: dict[str, int], first: int) -> float:
-    """Where the feet rest in the motion's last FLOOR_SECONDS before `first` (a reaction's feet may
-    dip through the floor, so the floor is read before it)."""
-    before = motion.slice(max(0, first - round(FLOOR_SECONDS * motion.fps)), first)
-    pos, glob = before.global_transforms()
-    points = {side: foot_points(motion.skeleton, joint[f"ankle_{side}"], pos, glob) for side in SIDES}
-    return _lower_foot(points, FLOOR_PERCENTILE)
-
-
-def _lower_foot(points: dict[str, np.ndarray], percentile: float) -> float:
-    """A percentile of the lower foot's lowest point over the frames of its points (T, P, 3) per side."""
-    return float(np.percentile(np.minimum(*(p[..., 2].min(axis=1) for p in points.values())), percentile))
 
 
 def _sliding(points: np.ndarray, floor: float, fps: float) -> tuple[np.ndarray, np.ndarray]:

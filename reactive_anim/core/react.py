@@ -222,7 +222,9 @@ def react(
         fades = [(frame_c, frame_c + steps + 1), *chain_fade]
         if resumed_at is not None:
             fades.append((end_frame - window + 1, end_frame + 1))
-        out = hold_feet(out, ragdoll.roles, int(np.ceil(impact.frame)) + 1, end_frame + 1, fades)  # B's pose stays
+        # B's own pose stays; a held last pose (a fall with nothing chained) is held lifted as it ends
+        last = end_frame + 1 if resumed_at is not None else out.num_frames
+        out = hold_feet(out, ragdoll.roles, (int(np.ceil(impact.frame)) + 1, last), fades, casting.sole)
     clock.lap("splice")
     return Reaction(
         impact=impact,

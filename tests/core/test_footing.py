@@ -4,7 +4,8 @@
   stood, up to the hold's limit (beyond it the feet slide the rest), and to the end where they
   never lift; a walker's hold is let go in the air and the walk after it is untouched; a drag
   outside the fades is the motion's own.
-- Reactions on the sample walk slide their feet less than half as far as without the hold.
+- Reactions on the sample walk slide their feet less than half as far as without the hold, and
+  no foot goes through the floor (without the hold, toes went up to 4 cm under).
 """
 
 from __future__ import annotations
@@ -39,6 +40,11 @@ def dragged(distance: float) -> Motion:
     return replace(IDLE, root_pos=IDLE.root_pos + drag)
 
 
+def sole(motion: Motion) -> float:
+    """The lowest any foot point gets in the motion: the character's floor (casting.Casting.sole)."""
+    return float(np.min([contact_points(motion, side)[:, 2] for side in "lr"]))
+
+
 def contact_points(motion: Motion, side: str) -> np.ndarray:
     """(T, 3) the lowest point of a foot per frame."""
     pos, rot = motion.global_transforms()
@@ -67,7 +73,7 @@ def test_a_dragged_stance_keeps_its_footprints_to_the_end():
     the motion (no slide when the hold would end). Frames before the range are the input's, bit
     for bit."""
     moved = dragged(0.09)
-    held = hold_feet(moved, ROLES, START, START + FRAMES, [(START, START + FRAMES)])
+    held = hold_feet(moved, ROLES, (START, START + FRAMES), [(START, START + FRAMES)], sole(moved))
     for side in "lr":
         before, after = contact_points(moved, side), contact_points(held, side)
         assert np.linalg.norm(before[-1, :2] - before[START - 1, :2]) > 0.085
@@ -79,7 +85,7 @@ def test_a_dragged_stance_keeps_its_footprints_to_the_end():
 def test_slides_outside_the_fades_are_the_motions_own():
     """The same drag before the fades (a clip's own motion) is not taken back: the feet go along."""
     moved = dragged(0.09)
-    held = hold_feet(moved, ROLES, START, START + FRAMES, [(START + FRAMES, START + FRAMES + 5)])
+    held = hold_feet(moved, ROLES, (START, START + FRAMES), [(START + FRAMES, START + FRAMES + 5)], sole(moved))
     assert np.array_equal(held.local_rot[: START + FRAMES], moved.local_rot[: START + FRAMES])
     for side in "lr":
         travel = contact_points(held, side)[-1, :2] - contact_points(held, side)[START - 1, :2]
@@ -92,7 +98,7 @@ def test_a_walkers_hold_is_let_go_in_the_air_and_the_walk_after_is_untouched():
     drag = np.zeros_like(WALK.root_pos)
     drag[:, 0] = np.clip(np.arange(WALK.num_frames) - START, 0, FRAMES) * 0.09 / FRAMES
     moved = replace(WALK, root_pos=WALK.root_pos + drag)
-    held = hold_feet(moved, ROLES, START, START + FRAMES, [(START, START + FRAMES)])
+    held = hold_feet(moved, ROLES, (START, START + FRAMES), [(START, START + FRAMES)], sole(moved))
     changed = np.flatnonzero(np.abs(held.local_rot - moved.local_rot).max(axis=(1, 2)) > 0.0)
     assert changed.size and changed[0] >= START and changed[-1] < WALK.num_frames - 30
     after = changed[-1] + 1
@@ -107,7 +113,7 @@ def test_a_drag_beyond_the_hold_slides_the_feet_by_the_rest():
     would be stretched straight) and slide the rest."""
     most = MAX_OFFSET * leg_length(IDLE.skeleton, ROLES)
     moved = dragged(0.30)
-    held = hold_feet(moved, ROLES, START, START + FRAMES, [(START, START + FRAMES)])
+    held = hold_feet(moved, ROLES, (START, START + FRAMES), [(START, START + FRAMES)], sole(moved))
     for side in "lr":
         points = contact_points(held, side)
         travel = np.linalg.norm(points[START + FRAMES - 1, :2] - points[START - 1, :2])
@@ -136,7 +142,7 @@ def reactions():
 
 def test_reactions_on_the_walk_slide_their_feet_less_than_half_as_far(reactions):
     """Measured over B..F + 20 frames (the simulation, the fade into the clip, its first steps) on
-    three pushes: 198 cm without the hold, 82 cm with it when written (most of it in BC, the
+    three pushes: 198 cm without the hold, 81 cm with it when written (most of it in BC, the
     simulation's own slip under the shove, which the hold leaves)."""
     floor = float(np.min([contact_points(WALK, side)[:, 2] for side in "lr"]))
     without = sum(sliding(r.motion, round(r.frame_b), r.frame_f + 20, floor) for r, _ in reactions)
@@ -144,3 +150,14 @@ def test_reactions_on_the_walk_slide_their_feet_less_than_half_as_far(reactions)
     assert held < 0.5 * without, (held, without)
     for free, kept in reactions:  # the hold changes the feet, not what was chosen
         assert (kept.reaction_class, kept.clip, kept.jump_frame) == (free.reaction_class, free.clip, free.jump_frame)
+
+
+def test_no_foot_goes_through_the_floor_in_a_reaction(reactions):
+    """The floor is the lowest the walk's feet get (casting.Casting.sole)."""
+    floor = sole(WALK)
+    for _, kept in reactions:
+        lowest = np.min([contact_points(kept.motion, side)[round(kept.frame_b) :, 2] for side in "lr"])
+        assert lowest > floor - 0.001, (lowest, floor)
+    assert (
+        min(np.min([contact_points(free.motion, side)[:, 2] for side in "lr"]) for free, _ in reactions) < floor - 0.01
+    )
