@@ -24,8 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import quat
-from .retarget import foot_points, joint_path, leg_length, two_bone_ik
+from .retarget import foot_points, joint_path, leg_length, local_rotations, two_bone_ik
 from .skeleton import Motion
 
 CONTACT_HEIGHT = 0.03  # m over the floor: a foot point lower than this stands on it, fully from ...
@@ -57,7 +56,7 @@ def hold_feet(
     end = min(motion.num_frames, last + round(SETTLE * motion.fps))
     while True:
         held = _hold(motion, roles, joint, (first, last, end), fades, floor)
-        if held is None or end == motion.num_frames or not np.abs(held[1][-1]).max() > 1e-6:
+        if held is None or end == motion.num_frames or not held[1]:
             break
         end = min(motion.num_frames, end + (end - first))  # a foot still held: look further
     if held is None:
@@ -73,10 +72,10 @@ def _hold(
     frames: tuple[int, int, int],
     fades: list[tuple[int, int]],
     floor: float,
-) -> tuple[np.ndarray, np.ndarray, list[tuple[list[int], np.ndarray]]] | None:
-    """The global rotations over first - 1..end - 1 with the feet held, the offsets (T, 2, both
-    feet's largest by row) and per leg turned its joints and the rows it turned; None where
-    nothing moves."""
+) -> tuple[np.ndarray, bool, list[tuple[list[int], np.ndarray]]] | None:
+    """The global rotations over first - 1..end - 1 with the feet held, whether a foot is still
+    held at end - 1, and per leg turned its joints and the rows it turned; None where nothing
+    moves."""
     first, last, end = frames
     span = motion.slice(first - 1, end)  # one frame before: where the first frame's foot came from
     skeleton = span.skeleton
@@ -89,7 +88,7 @@ def _hold(
         fading[max(a - first, 0) : max(b - first, 0)] = True
     leg = leg_length(skeleton, roles)
     moved: list[tuple[list[int], np.ndarray]] = []
-    largest = np.zeros((len(pos), 2))
+    still_held = False
     for side in SIDES:
         ankle = joint[f"ankle_{side}"]
         down, slide = _sliding(points[side], floor, motion.fps)
@@ -98,7 +97,7 @@ def _hold(
         lift[0] = 0.0
         lift[last - first + 1 :] = 0.0  # after the reaction the motion is its own
         moves = (np.abs(offset).max(axis=1) > 1e-6) | (lift > 1e-6)
-        largest = np.where(np.abs(offset) > np.abs(largest), offset, largest)
+        still_held = still_held or bool(np.abs(offset[-1]).max() > 1e-6)
         if not moves.any():
             continue
         goal = pos[:, ankle].copy()
@@ -108,7 +107,7 @@ def _hold(
         goal = _eased_reach(goal, *(pos[:, j] for j in chain))
         two_bone_ik(skeleton, pos, glob, chain, goal, moves.astype(float), left, forward)
         moved.append((joint_path(skeleton, chain[0], ankle), moves))
-    return (glob, largest, moved) if moved else None
+    return (glob, still_held, moved) if moved else None
 
 
 def _eased_reach(goal: np.ndarray, hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray) -> np.ndarray:
@@ -129,14 +128,12 @@ def _with_legs(motion: Motion, glob: np.ndarray, legs: list[tuple[list[int], np.
     """`motion` with each leg's local rotations taken from `glob` (rows from frame first - 1) on
     the rows its IK turned (the others stay the input's, bit for bit), each on the same side of
     the quaternion sphere as the rotation it replaces."""
+    local = local_rotations(motion.skeleton, glob)
     local_rot = motion.local_rot.copy()
     for joints, rows in legs:
-        frames = first - 1 + np.flatnonzero(rows)
-        turned = glob[np.flatnonzero(rows)]
-        parents = motion.skeleton.parents[joints]
-        local = quat.normalize(quat.mul(quat.conj(turned[:, parents]), turned[:, joints]))
-        old = local_rot[frames][:, joints]
-        local_rot[frames[:, None], joints] = np.where(np.sum(local * old, axis=-1, keepdims=True) < 0.0, -local, local)
+        turned = np.flatnonzero(rows)
+        new, old = local[turned][:, joints], local_rot[first - 1 + turned][:, joints]
+        local_rot[(first - 1 + turned)[:, None], joints] = np.where(np.sum(new * old, -1, keepdims=True) < 0, -new, new)
     return Motion(skeleton=motion.skeleton, fps=motion.fps, root_pos=motion.root_pos, local_rot=local_rot,
                   local_pos=motion.local_pos)  # fmt: skip
 

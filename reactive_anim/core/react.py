@@ -217,11 +217,10 @@ def react(
     end_frame = out.num_frames - 1
     standing = chained is not None or not match.reaction_class.startswith("fall_")
     window = max(2, round(library.window * motion.fps / library.fps)) if settings.resume and standing else 0
-    out, resumed_at = _resume_or_hold(out, source or motion, int(np.ceil(impact.frame)), window, ragdoll.roles)
+    out, resumed_at, resume_fade = _resume_or_hold(out, source or motion, int(np.ceil(impact.frame)), window,
+                                                   ragdoll.roles)  # fmt: skip
     if settings.hold_feet:
-        fades = [(frame_c, frame_c + steps + 1), *chain_fade]
-        if resumed_at is not None:
-            fades.append((end_frame - window + 1, end_frame + 1))
+        fades = [(frame_c, frame_c + steps + 1), *chain_fade, *resume_fade]
         # B's own pose stays; a held last pose (a fall with nothing chained) is held lifted as it ends
         last = end_frame + 1 if resumed_at is not None else out.num_frames
         out = hold_feet(out, ragdoll.roles, (int(np.ceil(impact.frame)) + 1, last), fades, casting.sole)
@@ -407,22 +406,24 @@ def _still_from(library: Library, clip_index: int, fps: float) -> int:
 
 def _resume_or_hold(
     out: Motion, source: Motion, first: int, window: int, roles: dict[str, str]
-) -> tuple[Motion, int | None]:
+) -> tuple[Motion, int | None, list[tuple[int, int]]]:
     """Resume the source over a `window`-frame fade (0: do not resume, as after a fall with nothing
     chained), re-entering at a frame from `first` to a second past where the fade starts (the
     resumed motion stays near the timeline's own time: a walk repeats within a second, and later
     markers still land where the animator put them); else hold the last pose. Either way the result
     runs at least to the source's end (a re-entry up to a second ahead ends that much sooner: the
-    last pose is held)."""
+    last pose is held). Also returns the source's frame it re-entered at (None: held) and the
+    fade's frames [a, b) (none when held)."""
     stop = min(source.num_frames, out.num_frames + round(source.fps))
-    resumed_at = None
+    resumed_at, fade = None, []
     if window and stop - first > window:
+        fade = [(out.num_frames - window, out.num_frames)]
         out, resumed_at = _resume(out, source, (first, stop), window, roles)
     missing = source.num_frames - out.num_frames  # a bake never shortens the action
     if missing > 0:
         hold = out.slice(out.num_frames - 1, out.num_frames)
         out = _join(out, *([hold] * missing))
-    return out, resumed_at
+    return out, resumed_at, fade
 
 
 def _resume(

@@ -299,7 +299,7 @@ def retarget(
     keep = quat.normalize(base.local_rot) if base is not None else quat.identity((n, count))
     glob = _chain_globals(target, _wanted_globals(mapping, src_pos, src_rot), keep)
     root_pos = _root_positions(mapping, motion, glob, src_pos)
-    out = Motion(skeleton=target, fps=motion.fps, root_pos=root_pos, local_rot=_locals(target, glob))
+    out = Motion(skeleton=target, fps=motion.fps, root_pos=root_pos, local_rot=local_rotations(target, glob))
     if fix_feet:
         out = _plant_feet(mapping, motion, (src_pos, src_rot), out, sole)
     return out
@@ -343,7 +343,8 @@ def _chain_globals(target: Skeleton, wanted: dict[int, np.ndarray], keep: np.nda
     return glob
 
 
-def _locals(target: Skeleton, glob: np.ndarray) -> np.ndarray:
+def local_rotations(target: Skeleton, glob: np.ndarray) -> np.ndarray:
+    """Local rotations (T, J, 4) of global ones, normalised and continuous along the frames."""
     local = glob.copy()
     child = np.arange(1, target.num_joints)
     local[:, child] = quat.mul(quat.conj(glob[:, target.parents[child]]), glob[:, child])
@@ -357,7 +358,7 @@ def _root_positions(mapping: RetargetMap, motion: Motion, glob: np.ndarray, src_
     pelvis_k = mapping.roles.index("pelvis")
     want = src_pos[:, mapping.source_joints[pelvis_k]] * mapping.scale
     zero = np.zeros((motion.num_frames, 3))
-    local = _locals(target, glob)
+    local = local_rotations(target, glob)
     at_origin = forward_kinematics(target, zero, local, target.offsets)[0][:, mapping.target_joints[pelvis_k]]
     return want - at_origin
 
@@ -429,7 +430,9 @@ def _plant_feet(
         moved = ((weight > 0.0) | (below > 0.0)).astype(float)
         joints = (target_roles[f"hip_{s}"], target_roles[f"knee_{s}"], ankle_t)
         two_bone_ik(mapping.target, pos, glob, joints, goal, moved, left, forward)
-    return Motion(skeleton=out.skeleton, fps=out.fps, root_pos=root_pos, local_rot=_locals(mapping.target, glob))
+    return Motion(
+        skeleton=out.skeleton, fps=out.fps, root_pos=root_pos, local_rot=local_rotations(mapping.target, glob)
+    )
 
 
 def lowest_foot_point(skeleton: Skeleton, ankle: int, positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
