@@ -145,33 +145,51 @@ def to_euler(q: ArrayLike, order: str) -> np.ndarray:
     rebuild the rotation exactly, gimbal lock included (where the first absorbs the shared freedom).
     """
     i, j, k = _axis_index(order)
-    m = to_matrix(q)
+    q = np.asarray(q, dtype=float)
+    m = _matrix_entries(normalize(q), [(i, k), (i, i), (i, j), (j, k), (k, k)])
     s = 1.0 if (j - i) % 3 == 1 else -1.0  # even (cyclic) or odd permutation
-    middle = np.arctan2(s * m[..., i, k], np.hypot(m[..., i, i], m[..., i, j]))
-    locked = np.hypot(m[..., j, k], m[..., k, k]) < 1e-12
-    first = np.where(locked, 0.0, np.arctan2(-s * m[..., j, k], m[..., k, k]))
+    middle = np.arctan2(s * m[i, k], np.hypot(m[i, i], m[i, j]))
+    locked = np.hypot(m[j, k], m[k, k]) < 1e-12
+    first = np.where(locked, 0.0, np.arctan2(-s * m[j, k], m[k, k]))
     axes = np.eye(3)
     done = mul(from_axis_angle(axes[i], first), from_axis_angle(axes[j], middle))
-    rest = to_matrix(mul(conj(done), q))
-    last = np.arctan2(rest[..., (k + 2) % 3, (k + 1) % 3], rest[..., (k + 1) % 3, (k + 1) % 3])
-    return np.stack([first, middle, last], axis=-1)
+    row, column = (k + 2) % 3, (k + 1) % 3
+    rest = _matrix_entries(normalize(mul(conj(done), q)), [(row, column), (column, column)])
+    last = np.arctan2(rest[row, column], rest[column, column])
+    out = np.empty(first.shape + (3,))
+    out[..., 0], out[..., 1], out[..., 2] = first, middle, last
+    return out
 
 
 def to_matrix(q: ArrayLike) -> np.ndarray:
     """Rotation matrices `(..., 3, 3)` of unit quaternions."""
     q = normalize(q)
-    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     m = np.empty(q.shape[:-1] + (3, 3))
-    m[..., 0, 0] = 1 - 2 * (y * y + z * z)
-    m[..., 0, 1] = 2 * (x * y - w * z)
-    m[..., 0, 2] = 2 * (x * z + w * y)
-    m[..., 1, 0] = 2 * (x * y + w * z)
-    m[..., 1, 1] = 1 - 2 * (x * x + z * z)
-    m[..., 1, 2] = 2 * (y * z - w * x)
-    m[..., 2, 0] = 2 * (x * z - w * y)
-    m[..., 2, 1] = 2 * (y * z + w * x)
-    m[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    for (r, c), entry in _matrix_entries(q, list(_MATRIX_ENTRIES)).items():
+        m[..., r, c] = entry
     return m
+
+
+# Each entry of a unit quaternion's rotation matrix, from (w, x, y, z).
+_MATRIX_ENTRIES = {
+    (0, 0): lambda w, x, y, z: 1 - 2 * (y * y + z * z),
+    (0, 1): lambda w, x, y, z: 2 * (x * y - w * z),
+    (0, 2): lambda w, x, y, z: 2 * (x * z + w * y),
+    (1, 0): lambda w, x, y, z: 2 * (x * y + w * z),
+    (1, 1): lambda w, x, y, z: 1 - 2 * (x * x + z * z),
+    (1, 2): lambda w, x, y, z: 2 * (y * z - w * x),
+    (2, 0): lambda w, x, y, z: 2 * (x * z - w * y),
+    (2, 1): lambda w, x, y, z: 2 * (y * z + w * x),
+    (2, 2): lambda w, x, y, z: 1 - 2 * (x * x + y * y),
+}
+
+
+def _matrix_entries(q: np.ndarray, entries: list[tuple[int, int]]) -> dict[tuple[int, int], np.ndarray]:
+    """Only the wanted entries of the rotation matrices of unit quaternions `q` (already
+    normalised): Euler angles need five of the nine, and on the small arrays of a simulation's
+    pose tables numpy's per-call cost is most of the work."""
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return {entry: _MATRIX_ENTRIES[entry](w, x, y, z) for entry in dict.fromkeys(entries)}
 
 
 def sandwich(r: ArrayLike, q: ArrayLike) -> np.ndarray:

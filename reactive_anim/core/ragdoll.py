@@ -215,6 +215,7 @@ class Ragdoll:
     body_of_joint: np.ndarray
     compile_seconds: float
     kinematic_joints: np.ndarray  # skeleton joints FK must visit: body joints and their ancestors
+    kinematic_levels: tuple[tuple[np.ndarray, np.ndarray], ...]  # those below the root, (joints, parents) by depth
     frame_quat: np.ndarray  # (B, 4) joint frame (e1, e2, e3 as columns) per body
     hinge_body: np.ndarray  # per hinge: its body, Euler slot, qpos and dof address, abduction sign
     hinge_slot: np.ndarray
@@ -884,4 +885,9 @@ def _index_arrays(skeleton: Skeleton, bodies: list[RagdollBody], model: mujoco.M
     frozen: dict = {name: _frozen(a) for name, a in arrays.items()}
     frozen["dof_body"] = {int(adr): b.name for b in bodies for adr in b.dof_adr}
     frozen["floor_geom"] = int(model.geom("floor").id)
+    frozen["kinematic_levels"] = tuple(
+        (_frozen(level), _frozen(skeleton.parents[level]))
+        for level in (np.intersect1d(joints, arrays["kinematic_joints"]) for joints in skeleton.levels[1:])
+        if len(level)
+    )
     return frozen

@@ -229,18 +229,17 @@ def _kinematics(
     small arrays, and this runs once per impact on the critical path."""
     n, count = local_rot.shape[:2]
     joints = ragdoll.kinematic_joints
-    local_m = quat.to_matrix(local_rot[:, joints])
+    local_m = np.zeros((n, count, 3, 3))
+    local_m[:, joints] = quat.to_matrix(local_rot[:, joints])
     pos = np.zeros((n, count, 3))
     rot_m = np.zeros((n, count, 3, 3))
-    parents = ragdoll.skeleton.parents
-    for k, j in enumerate(joints):
-        p = parents[j]
-        if p < 0:
-            pos[:, j] = root_pos
-            rot_m[:, j] = local_m[:, k]
-        else:
-            pos[:, j] = pos[:, p] + np.einsum("nab,nb->na", rot_m[:, p], offsets[:, j])
-            rot_m[:, j] = rot_m[:, p] @ local_m[:, k]
+    root = joints[0]
+    pos[:, root] = root_pos
+    rot_m[:, root] = local_m[:, root]
+    # A level of the hierarchy at a time: each joint's arithmetic is the same as joint by joint.
+    for level, parents in ragdoll.kinematic_levels:
+        pos[:, level] = pos[:, parents] + np.einsum("njab,njb->nja", rot_m[:, parents], offsets[:, level])
+        rot_m[:, level] = rot_m[:, parents] @ local_m[:, level]
     rot = np.zeros((n, count, 4))
     rot[:, joints] = quat.from_matrix(rot_m[:, joints])
     return pos, rot
@@ -529,7 +528,8 @@ class _Watch:
         """Kinetic + potential energy, computed on demand (cheaper than MuJoCo's per-step flag)."""
         mujoco.mj_energyPos(self.model, self.data)
         mujoco.mj_energyVel(self.model, self.data)
-        return float(np.sum(self.data.energy))
+        potential, kinetic = self.data.energy
+        return float(potential + kinetic)
 
     def arm_energy(self) -> None:
         self.energy_limit = self.energy() + 0.5 * self.mass * ENERGY_ALLOWANCE_SPEED**2
@@ -547,11 +547,12 @@ class _Watch:
                 f"simulation produced NaN at t = {t:.4f} s: body '{self._dof_name(bad)}', quantity qvel"
             )
         hinge = np.abs(qvel[6:])
-        if hinge.size and hinge.max() > MAX_JOINT_SPEED:
+        fastest = float(hinge.max()) if hinge.size else 0.0
+        if fastest > MAX_JOINT_SPEED:
             i = int(np.argmax(hinge)) + 6
             raise SimulationError(
                 f"simulation exploded at t = {t:.4f} s: body '{self._dof_name(i)}' joint speed "
-                f"{hinge.max():.1f} rad/s exceeds {MAX_JOINT_SPEED:g}"
+                f"{fastest:.1f} rad/s exceeds {MAX_JOINT_SPEED:g}"
             )
         speed = math.hypot(qvel[0], qvel[1], qvel[2])
         if speed > MAX_BODY_SPEED:
@@ -667,16 +668,14 @@ def _share_bends(ragdoll: Ragdoll, local: np.ndarray, held: np.ndarray) -> None:
     for _, joints, weights in ragdoll.spine_segments:
         bend = quat.make_continuous(quat.mul(local[:, joints[0]], quat.conj(held[joints[0]])))
         bend = np.where(bend[..., :1] < 0, -bend, bend)
-        ident = quat.identity(bend.shape[:1])
-        cumulative_held = held[joints[0]]
-        previous = quat.identity(bend.shape[:1])
-        for joint, weight in zip(joints, weights, strict=True):
-            if joint != joints[0]:
-                cumulative_held = quat.mul(cumulative_held, held[joint])
-            share = quat.slerp(ident, bend, np.full(len(bend), weight))
-            cumulative = quat.mul(share, np.broadcast_to(cumulative_held, bend.shape))
-            local[:, joint] = quat.mul(quat.conj(previous), cumulative)
-            previous = cumulative
+        cumulative_held = [held[joints[0]]]
+        for joint in joints[1:]:
+            cumulative_held.append(quat.mul(cumulative_held[-1], held[joint]))
+        # Every joint of the segment at once (N, k, 4): the same elementwise arithmetic per joint.
+        share = quat.slerp(quat.identity(bend.shape[:1])[:, None], bend[:, None], weights)
+        cumulative = quat.mul(share, np.array(cumulative_held))
+        previous = np.concatenate([quat.identity(bend.shape[:1])[:, None], cumulative[:, :-1]], axis=1)
+        local[:, joints] = quat.mul(quat.conj(previous), cumulative)
 
 
 # ---------------------------------------------------------------------------------------------
