@@ -11,6 +11,11 @@ What we choose where the paper is silent, and why:
   leaves CD with CD's own velocity and at F it joins the clip with the clip's velocity (a linear
   fade would add a velocity step of (clip - CD) / duration at both ends).
 - Joint offsets (animated bone lengths, as in the Bandai Namco files) are lerped like the root.
+- A joint hanging from the root by an animated offset (the hips under a ground root bone that stays
+  at the origin, as in the Bandai Namco files, whose hips channels carry the whole walk) is blended
+  in world space: its position lerped, its rotation slerped. Blended through the root, the root's
+  turn would swing it on an arc as wide as the walk is long: two sources a quarter turn apart put
+  the hips 6 m off their path for a few frames, at 38 m/s (a shared walk, pushed twice).
 """
 
 from __future__ import annotations
@@ -50,7 +55,32 @@ def blend(a: Motion, b: Motion, weights: np.ndarray) -> Motion:
     if a.local_pos is not None or b.local_pos is not None:
         pa, pb = a.joint_offsets(), b.joint_offsets()
         local_pos = pa + (pb - pa) * w[:, None, None]
+        _hung_from_root_in_world(a, b, w, root, rot, local_pos)
     return Motion(a.skeleton, a.fps, root, rot, local_pos)
+
+
+def _hung_from_root_in_world(
+    a: Motion, b: Motion, w: np.ndarray, root: np.ndarray, rot: np.ndarray, offsets: np.ndarray
+) -> None:
+    """Re-blend the root's children in world space (see the module docstring), in place, on the
+    frames strictly between the two sources (weights 0 and 1 keep a source's frame exactly)."""
+    kids = np.flatnonzero(a.skeleton.parents == 0)
+    between = np.flatnonzero((w > 0) & (w < 1))
+    if len(kids) == 0 or len(between) == 0:
+        return
+    t = w[between, None]
+    turn = rot[between, :1]
+    worlds, globals_ = [], []
+    for source in (a, b):
+        source_turn = source.local_rot[between, :1]
+        worlds.append(
+            source.root_pos[between, None] + quat.rotate(source_turn, source.joint_offsets()[between][:, kids])
+        )
+        globals_.append(quat.mul(source_turn, source.local_rot[between][:, kids]))
+    world = worlds[0] + (worlds[1] - worlds[0]) * t[..., None]
+    offsets[between[:, None], kids] = quat.rotate(quat.conj(turn), world - root[between, None])
+    turned = quat.slerp(globals_[0], globals_[1], np.broadcast_to(t, (len(between), len(kids))))
+    rot[between[:, None], kids] = quat.mul(quat.conj(turn), turned)
 
 
 def place(motion: Motion, yaw: float, offset: tuple[float, float]) -> Motion:

@@ -8,6 +8,7 @@ import pytest
 from reactive_anim.core import bvh, quat
 from reactive_anim.core.blend import blend, fade_weights, place
 from reactive_anim.core.errors import SkeletonError
+from reactive_anim.core.skeleton import Motion, Skeleton
 from tests.support.mocap import REPO
 
 
@@ -48,3 +49,31 @@ def test_place_turns_and_moves_the_whole_motion_rigidly(walk) -> None:
     turned = np.stack([-p[..., 1] + 3.0, p[..., 0] - 1.0, p[..., 2]], axis=-1)
     assert np.allclose(q, turned, atol=1e-9)
     assert np.array_equal(placed.local_rot[:, 1:], clip.local_rot[:, 1:])
+
+
+def _on_ground_root(motion: Motion) -> Motion:
+    """The motion under a ground root bone that stays at the origin, its walk carried by the hips'
+    own position channels (as the Bandai Namco files are)."""
+    sk = motion.skeleton
+    skeleton = Skeleton(["ground", *sk.names], np.concatenate([[-1], np.where(sk.parents < 0, 0, sk.parents + 1)]),
+                        np.concatenate([np.zeros((1, 3)), sk.offsets]))  # fmt: skip
+    offsets = np.concatenate([np.zeros((motion.num_frames, 1, 3)), motion.joint_offsets()], axis=1)
+    offsets[:, 1] = motion.root_pos
+    rot = np.concatenate([quat.identity((motion.num_frames, 1)), motion.local_rot], axis=1)
+    return Motion(skeleton, motion.fps, np.zeros((motion.num_frames, 3)), rot, offsets)
+
+
+def test_hips_under_a_ground_root_fade_along_the_line_between_the_sources(walk) -> None:
+    """Two sources whose ground roots are a quarter turn apart (a placed clip and the character):
+    blended through the root's turn, the hips would swing on an arc as wide as their distance from
+    the origin; in world space they go straight from one source's hips to the other's."""
+    a = _on_ground_root(walk.slice(0, 30))
+    b = place(_on_ground_root(walk.slice(100, 130)), np.pi / 2, (4.0, -2.0))
+    w = fade_weights(30)
+    out = blend(a, b, w)
+    hips = [m.global_transforms() for m in (a, b, out)]
+    line = hips[0][0][:, 1] + (hips[1][0][:, 1] - hips[0][0][:, 1]) * w[:, None]
+    assert np.abs(hips[2][0][:, 1] - line).max() < 1e-9
+    turned = quat.slerp(hips[0][1][:, 1], hips[1][1][:, 1], w)
+    assert quat.angle_between(hips[2][1][:, 1], turned).max() < 1e-9
+    assert np.array_equal(out.local_pos[0], a.local_pos[0]) and np.array_equal(out.local_pos[-1], b.local_pos[-1])
