@@ -62,9 +62,15 @@ def blend(a: Motion, b: Motion, weights: np.ndarray) -> Motion:
 def _hung_from_root_in_world(
     a: Motion, b: Motion, w: np.ndarray, root: np.ndarray, rot: np.ndarray, offsets: np.ndarray
 ) -> None:
-    """Re-blend the root's children in world space (see the module docstring), in place, on the
-    frames strictly between the two sources (weights 0 and 1 keep a source's frame exactly)."""
-    kids = np.flatnonzero(a.skeleton.parents == 0)
+    """Re-blend the root's children whose offsets are animated in world space (see the module
+    docstring), in place, on the frames strictly between the two sources (weights 0 and 1 keep a
+    source's frame exactly). A child on a fixed bone keeps the plain blend and its length."""
+    rest = a.skeleton.offsets
+    kids = [
+        k
+        for k in np.flatnonzero(a.skeleton.parents == 0)
+        if not all(np.array_equal(m.joint_offsets()[:, k], np.broadcast_to(rest[k], (m.num_frames, 3))) for m in (a, b))
+    ]
     between = np.flatnonzero((w > 0) & (w < 1))
     if len(kids) == 0 or len(between) == 0:
         return
