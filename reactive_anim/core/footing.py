@@ -120,7 +120,8 @@ def _eased_reach(goal: np.ndarray, hip: np.ndarray, knee: np.ndarray, ankle: np.
     start = np.maximum(SOFT_REACH * length, np.linalg.norm(ankle - hip, axis=-1))
     room = np.maximum(length - start, 1e-6)
     distance = np.linalg.norm(goal - hip, axis=-1)
-    eased = np.where(distance > start, start + room * (1.0 - np.exp(-(distance - start) / room)), distance)
+    beyond = np.maximum(distance - start, 0.0)  # zero where the goal is within reach: exp stays finite
+    eased = np.where(distance > start, start + room * (1.0 - np.exp(-beyond / room)), distance)
     return hip + (goal - hip) * (eased / np.maximum(distance, 1e-9))[:, None]
 
 

@@ -8,11 +8,13 @@ bit-identical output; absurd impulses and NaN poses raise SimulationError.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from reactive_anim.core import bvh
-from reactive_anim.core.errors import SimulationError
+from reactive_anim.core.errors import ImpactError, SimulationError
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.ragdoll import build_ragdoll
 from reactive_anim.core.simulate import simulate_impact, state_from_mocap, track
@@ -141,10 +143,19 @@ def test_bc_output_is_a_motion_of_the_full_skeleton_at_frame_times(walk, ragdoll
     assert np.allclose(np.abs(np.sum(result.motion.local_rot[:, merged] * held[merged], axis=-1)), 1.0)
 
 
-def test_absurd_impulse_raises_simulation_error(walk, ragdolls):
+def test_absurd_impulse_is_refused_before_simulating(walk, ragdolls):
     ragdoll = ragdolls["anatomical"]
-    with pytest.raises(SimulationError, match=r"t = \d+\.\d+ s.*body '.+'.*(speed|energy|NaN|warning)"):
+    with pytest.raises(ImpactError, match=r"'Chest' at frame \d+: 1e\+07 N·s .* at most \d+ N·s here"):
         simulate_impact(ragdoll, walk, Impact(START, "Chest", (1, 0, 0), 1e7))
+
+
+def test_a_state_flung_beyond_physical_speeds_raises_simulation_error(walk, ragdolls):
+    """The explosion checks: a start whose joints spin a thousand times faster than the walk's."""
+    ragdoll = ragdolls["anatomical"]
+    start = simulate_impact(ragdoll, walk, Impact(START, "Chest", (1, 0, 0), 50.0), window=0.1).state
+    flung = replace(start, qvel=start.qvel * 1000.0)
+    with pytest.raises(SimulationError, match=r"t = \d+\.\d+ s.*body '.+'.*(speed|energy|NaN|warning)"):
+        track(ragdoll, flung, walk, 0.2, target_start=START + 3)
 
 
 def test_nan_in_the_input_pose_raises_simulation_error(walk, ragdolls):

@@ -22,15 +22,17 @@ minus right hip, horizontal), forward = left x up.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
 import pytest
 
 from reactive_anim.core import bvh, quat
+from reactive_anim.core.errors import ImpactError
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.ragdoll import Ragdoll, build_ragdoll
-from reactive_anim.core.simulate import SimResult, simulate_impact, track
+from reactive_anim.core.simulate import MAX_HIT_SPEED, SimResult, simulate_impact, track
 from reactive_anim.core.skeleton import Motion
 from tests.support.mocap import REPO
 from tests.support.poses import ground_axes
@@ -248,3 +250,19 @@ def test_the_trunk_bend_is_shared_and_the_toes_follow_the_mocap(clips):
     for toe in ("toe.L", "toe.R"):
         k = names.index(toe)
         assert np.allclose(np.abs(np.sum(bc.motion.local_rot[:, k] * walk.local_rot[frames, k], axis=-1)), 1.0)
+
+
+def test_a_push_no_hit_could_give_is_refused_naming_the_most_the_bone_takes(clips):
+    """278 N·s on a hand (a 0.6 kg body) would start it at about 200 m/s and spin the wrist past
+    the explosion check; it is refused before simulating, with the most this bone takes here, and
+    that much is simulated. The trunk takes the same push."""
+    clip = clips["walk"]
+    forward, _ = character_axes(clip, IMPACT_FRAME)
+    with pytest.raises(ImpactError) as refused:
+        react(clip, "wrist_l", forward, 278.0)
+    message = str(refused.value)
+    assert bone(clip, "wrist_l") in message and "278 N·s" in message
+    speed, most = (float(x) for x in re.search(r"at (\d+) m/s; this bone takes at most (\d+) N·s", message).groups())
+    assert speed > 3 * MAX_HIT_SPEED and 20.0 < most < 278.0 * MAX_HIT_SPEED / speed + 1.0
+    react(clip, "wrist_l", forward, most - 1.0)
+    react(clip, "chest", forward, 278.0)
