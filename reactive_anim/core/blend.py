@@ -11,11 +11,13 @@ What we choose where the paper is silent, and why:
   leaves CD with CD's own velocity and at F it joins the clip with the clip's velocity (a linear
   fade would add a velocity step of (clip - CD) / duration at both ends).
 - Joint offsets (animated bone lengths, as in the Bandai Namco files) are lerped like the root.
-- A joint hanging from the root by an animated offset (the hips under a ground root bone that stays
-  at the origin, as in the Bandai Namco files, whose hips channels carry the whole walk) is blended
-  in world space: its position lerped, its rotation slerped. Blended through the root, the root's
-  turn would swing it on an arc as wide as the walk is long: two sources a quarter turn apart put
-  the hips 6 m off their path for a few frames, at 38 m/s (a shared walk, pushed twice).
+- A root with a single child (a ground bone above the hips: Bandai Namco's joint_Root, iClone's
+  BoneRoot) has that child faded in world space, its position lerped and its rotation slerped; its
+  offset from the (lerped) root takes up the difference, as the hips' own position channels do in
+  those files. Blended through the root, the root's turn swings the hips on an arc as wide as their
+  offset from the root, which there carries the walk (4.5 m in a shared run): two sources half a
+  turn apart put the hips 4 m off their path for a few frames, at up to 76 m/s, and a next push
+  simulated from there exploded.
 """
 
 from __future__ import annotations
@@ -51,42 +53,34 @@ def blend(a: Motion, b: Motion, weights: np.ndarray) -> Motion:
     rot[w == 0] = a.local_rot[w == 0]
     rot[w == 1] = b.local_rot[w == 1]
     root[w == 1] = b.root_pos[w == 1]
-    local_pos = None
-    if a.local_pos is not None or b.local_pos is not None:
-        pa, pb = a.joint_offsets(), b.joint_offsets()
-        local_pos = pa + (pb - pa) * w[:, None, None]
-        _hung_from_root_in_world(a, b, w, root, rot, local_pos)
-    return Motion(a.skeleton, a.fps, root, rot, local_pos)
+    pa, pb = a.joint_offsets(), b.joint_offsets()
+    local_pos = pa + (pb - pa) * w[:, None, None]
+    moved = _single_child_in_world(a, b, w, root, rot, local_pos)
+    keep = moved or a.local_pos is not None or b.local_pos is not None
+    return Motion(a.skeleton, a.fps, root, rot, local_pos if keep else None)
 
 
-def _hung_from_root_in_world(
+def _single_child_in_world(
     a: Motion, b: Motion, w: np.ndarray, root: np.ndarray, rot: np.ndarray, offsets: np.ndarray
-) -> None:
-    """Re-blend the root's children whose offsets are animated in world space (see the module
-    docstring), in place, on the frames strictly between the two sources (weights 0 and 1 keep a
-    source's frame exactly). A child on a fixed bone keeps the plain blend and its length."""
-    rest = a.skeleton.offsets
-    kids = [
-        k
-        for k in np.flatnonzero(a.skeleton.parents == 0)
-        if not all(np.array_equal(m.joint_offsets()[:, k], np.broadcast_to(rest[k], (m.num_frames, 3))) for m in (a, b))
-    ]
+) -> bool:
+    """The root's only child faded in world space (see the module docstring), in place, on the
+    frames strictly between the sources (weights 0 and 1 keep a source's frame exactly); whether
+    there was one to fade."""
+    kids = np.flatnonzero(a.skeleton.parents == 0)
     between = np.flatnonzero((w > 0) & (w < 1))
-    if len(kids) == 0 or len(between) == 0:
-        return
-    t = w[between, None]
-    turn = rot[between, :1]
-    worlds, globals_ = [], []
+    if len(kids) != 1 or len(between) == 0:
+        return False
+    kid = int(kids[0])
+    worlds, turns = [], []
     for source in (a, b):
-        source_turn = source.local_rot[between, :1]
-        worlds.append(
-            source.root_pos[between, None] + quat.rotate(source_turn, source.joint_offsets()[between][:, kids])
-        )
-        globals_.append(quat.mul(source_turn, source.local_rot[between][:, kids]))
-    world = worlds[0] + (worlds[1] - worlds[0]) * t[..., None]
-    offsets[between[:, None], kids] = quat.rotate(quat.conj(turn), world - root[between, None])
-    turned = quat.slerp(globals_[0], globals_[1], np.broadcast_to(t, (len(between), len(kids))))
-    rot[between[:, None], kids] = quat.mul(quat.conj(turn), turned)
+        source_root = source.local_rot[between, 0]
+        worlds.append(source.root_pos[between] + quat.rotate(source_root, source.joint_offsets()[between, kid]))
+        turns.append(quat.mul(source_root, source.local_rot[between, kid]))
+    world = worlds[0] + (worlds[1] - worlds[0]) * w[between, None]
+    turn = rot[between, 0]
+    offsets[between, kid] = quat.rotate(quat.conj(turn), world - root[between])
+    rot[between, kid] = quat.mul(quat.conj(turn), quat.slerp(turns[0], turns[1], w[between]))
+    return True
 
 
 def place(motion: Motion, yaw: float, offset: tuple[float, float]) -> Motion:

@@ -46,7 +46,7 @@ from .library import Library
 from .ragdoll import Ragdoll, build_ragdoll
 from .search import Match, search, search_with_fallback
 from .simulate import SimResult, Workspace, simulate_impact, track
-from .skeleton import Motion
+from .skeleton import Motion, hold_root, static_root
 from .window import (
     TABLE2_POSITION_WEIGHTS,
     TABLE2_ROTATION_WEIGHTS,
@@ -224,6 +224,9 @@ def react(
         # B's own pose stays; a held last pose (a fall with nothing chained) is held lifted as it ends
         last = end_frame + 1 if resumed_at is not None else out.num_frames
         out = hold_feet(out, ragdoll.roles, (int(np.ceil(impact.frame)) + 1, last), fades, casting.sole)
+    ground_root = static_root(source or motion)
+    if ground_root is not None:
+        out = hold_root(out, *ground_root)
     clock.lap("splice")
     return Reaction(
         impact=impact,

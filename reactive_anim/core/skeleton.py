@@ -218,3 +218,35 @@ def resample(motion: Motion, times: np.ndarray) -> Motion:
         local_pos = motion.local_pos[lo] * (1 - t)[:, None, None] + motion.local_pos[hi] * t[:, None, None]
     fps = 1.0 / (times[1] - times[0]) if len(times) > 1 else motion.fps
     return Motion(motion.skeleton, fps, root, rot, local_pos)
+
+
+def static_root(motion: Motion) -> tuple[np.ndarray, np.ndarray] | None:
+    """The root's one transform (position, rotation) when it never moves and has a single child:
+    a ground bone that stays put while the hips' own channels carry the walk (Bandai Namco's
+    joint_Root); None otherwise."""
+    if np.count_nonzero(motion.skeleton.parents == 0) != 1:
+        return None
+    pos, rot = motion.root_pos[0], motion.local_rot[0, 0]
+    if np.abs(motion.root_pos - pos).max() > 1e-6 or np.abs(motion.local_rot[:, 0] - rot).max() > 1e-9:
+        return None
+    return pos.copy(), rot.copy()
+
+
+def hold_root(motion: Motion, pos: np.ndarray, rot: np.ndarray) -> Motion:
+    """The same world motion with the root held at (pos, rot) on every frame, its single child's
+    offset and rotation taking up the rest, as in a file with a static ground root (static_root).
+    A reaction's sources put such a root wherever their own conventions do (the simulation moves it
+    with the pelvis, a placed clip turns it about the origin), and fading between them sent the
+    root bone metres across the floor. Frames whose root is already there stay bit for bit."""
+    kid = int(np.flatnonzero(motion.skeleton.parents == 0)[0])
+    moved = np.flatnonzero(np.any(motion.root_pos != pos, axis=1) | np.any(motion.local_rot[:, 0] != rot, axis=1))
+    if len(moved) == 0:
+        return motion
+    turn = motion.local_rot[moved, 0]
+    world = motion.root_pos[moved] + quat.rotate(turn, motion.joint_offsets()[moved, kid])
+    back = quat.conj(np.broadcast_to(rot, turn.shape))
+    root_pos, local_rot, local_pos = motion.root_pos.copy(), motion.local_rot.copy(), motion.joint_offsets().copy()
+    root_pos[moved], local_rot[moved, 0] = pos, rot
+    local_pos[moved, kid] = quat.rotate(back, world - pos)
+    local_rot[moved, kid] = quat.mul(back, quat.mul(turn, motion.local_rot[moved, kid]))
+    return replace(motion, root_pos=root_pos, local_rot=local_rot, local_pos=local_pos)

@@ -51,24 +51,30 @@ def test_place_turns_and_moves_the_whole_motion_rigidly(walk) -> None:
     assert np.array_equal(placed.local_rot[:, 1:], clip.local_rot[:, 1:])
 
 
-def _on_ground_root(motion: Motion) -> Motion:
-    """The motion under a ground root bone that stays at the origin, its walk carried by the hips'
-    own position channels (as the Bandai Namco files are)."""
+def _on_ground_root(motion: Motion, animated: bool) -> Motion:
+    """The motion under a ground root bone that stays at the origin, as in the Bandai Namco files:
+    the walk carried by the hips' own position channels (animated), or the hips hung 4.5 m from the
+    root by their rest offset with the root carrying the walk (as a cast clip of such a file)."""
     sk = motion.skeleton
+    long = np.array([0.0, 4.5, 0.9])
+    root_offsets = motion.root_pos if animated else np.broadcast_to(long, motion.root_pos.shape)
     skeleton = Skeleton(["ground", *sk.names], np.concatenate([[-1], np.where(sk.parents < 0, 0, sk.parents + 1)]),
-                        np.concatenate([np.zeros((1, 3)), sk.offsets]))  # fmt: skip
+                        np.concatenate([np.zeros((1, 3)), long[None], sk.offsets[1:]]))  # fmt: skip
     offsets = np.concatenate([np.zeros((motion.num_frames, 1, 3)), motion.joint_offsets()], axis=1)
-    offsets[:, 1] = motion.root_pos
+    offsets[:, 1] = root_offsets
     rot = np.concatenate([quat.identity((motion.num_frames, 1)), motion.local_rot], axis=1)
-    return Motion(skeleton, motion.fps, np.zeros((motion.num_frames, 3)), rot, offsets)
+    root = np.zeros((motion.num_frames, 3)) if animated else motion.root_pos - long
+    return Motion(skeleton, motion.fps, root, rot, offsets if animated else None)
 
 
-def test_hips_under_a_ground_root_fade_along_the_line_between_the_sources(walk) -> None:
-    """Two sources whose ground roots are a quarter turn apart (a placed clip and the character):
-    blended through the root's turn, the hips would swing on an arc as wide as their distance from
-    the origin; in world space they go straight from one source's hips to the other's."""
-    a = _on_ground_root(walk.slice(0, 30))
-    b = place(_on_ground_root(walk.slice(100, 130)), np.pi / 2, (4.0, -2.0))
+@pytest.mark.parametrize("animated", [True, False])
+def test_hips_under_a_ground_root_fade_along_the_line_between_the_sources(walk, animated) -> None:
+    """Two sources whose ground roots are half a turn apart (a placed clip and the character):
+    blended through the root's turn, the hips would swing on an arc as wide as their offset from
+    the root; in world space they go straight from one source's hips to the other's, and the
+    root goes straight too, the hips' offset from it taking up the difference."""
+    a = _on_ground_root(walk.slice(0, 30), animated)
+    b = place(_on_ground_root(walk.slice(100, 130), animated), 0.9 * np.pi, (4.0, -2.0))
     w = fade_weights(30)
     out = blend(a, b, w)
     hips = [m.global_transforms() for m in (a, b, out)]
@@ -76,4 +82,7 @@ def test_hips_under_a_ground_root_fade_along_the_line_between_the_sources(walk) 
     assert np.abs(hips[2][0][:, 1] - line).max() < 1e-9
     turned = quat.slerp(hips[0][1][:, 1], hips[1][1][:, 1], w)
     assert quat.angle_between(hips[2][1][:, 1], turned).max() < 1e-9
-    assert np.array_equal(out.local_pos[0], a.local_pos[0]) and np.array_equal(out.local_pos[-1], b.local_pos[-1])
+    assert np.array_equal(out.root_pos, a.root_pos + (b.root_pos - a.root_pos) * w[:, None])
+    assert np.array_equal(out.local_pos[0], a.joint_offsets()[0]) and np.array_equal(
+        out.local_pos[-1], b.joint_offsets()[-1]
+    )

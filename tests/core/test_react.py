@@ -16,7 +16,7 @@ from reactive_anim.core.library import load_library
 from reactive_anim.core.react import STILL_KEPT, ReactionSettings, bake_reactions, character_ragdoll, react
 from reactive_anim.core.retarget import leg_length
 from reactive_anim.core.roles import assign_roles
-from tests.support.mocap import REPO
+from tests.support.mocap import REPO, require_mocap
 from tests.support.poses import ground_axes, leg_joints
 
 B = 40  # a frame of the walk with a foot planted
@@ -209,3 +209,28 @@ def test_the_shipped_classifier_picks_the_reaction_the_push_calls_for(walk, libr
     r = react(walk, Impact(B, "chest", tuple(direction), strength), library, load_classifier(), ragdoll=ragdoll)
     assert r.predicted in expected, (r.predicted, sorted(r.probabilities.items(), key=lambda kv: -kv[1])[:3])
     assert r.reaction_class == r.predicted and r.scope == r.predicted
+
+
+def test_a_ground_root_stays_put_and_the_body_never_jumps_through_a_bake(library) -> None:
+    """A Bandai Namco run (a ground root bone at the origin, the hips' own channels carry the run)
+    pushed four times, one push landing during another's reaction: the fades between sources that
+    put the root elsewhere (the simulation moves it with the pelvis, a placed clip turns it about the
+    origin) swung the hips 4 m off their path at 76 m/s and the root bone 8 m across the floor. Now
+    the root stays where the file keeps it and no joint moves faster than the hits make it."""
+    motion = bvh.read_bvh(require_mocap("bandai_namco/dataset-1/dataset-1_run_tired_001.bvh"))
+    impacts = [
+        Impact(87.0, "Spine", (0.19, 0.977, -0.091), 183.0),
+        Impact(82.0, "UpperArm_R", (0.919, 0.171, -0.356), 77.0),
+        Impact(110.0, "Toes_R", (0.856, -0.506, -0.108), 87.0),
+        Impact(47.0, "Shoulder_L", (-0.817, 0.543, 0.196), 60.0),
+    ]
+    baked = bake_reactions(motion, impacts, library, load_classifier())
+    out = baked.motion
+    assert np.array_equal(out.root_pos, np.broadcast_to(motion.root_pos[0], out.root_pos.shape))
+    assert np.array_equal(out.local_rot[:, 0], np.broadcast_to(motion.local_rot[0, 0], out.local_rot[:, 0].shape))
+    speed = np.linalg.norm(np.diff(out.global_positions(), axis=0), axis=-1) * out.fps  # (T - 1, J)
+    hit = {out.skeleton.index(i.bone) for i in impacts}
+    hits = np.array([int(np.ceil(i.frame)) for i in impacts])
+    away = np.array([np.abs(hits - f).min() > 3 for f in range(len(speed))])
+    assert speed[away].max() < 15.0, speed[away].max()  # the run itself: 5.3 m/s at most
+    assert speed[:, sorted(hit)].max() < 50.0  # a hit body part starts at most at MAX_HIT_SPEED
