@@ -11,6 +11,10 @@ What we choose where the paper is silent, and why:
   leaves CD with CD's own velocity and at F it joins the clip with the clip's velocity (a linear
   fade would add a velocity step of (clip - CD) / duration at both ends).
 - Joint offsets (animated bone lengths, as in the Bandai Namco files) are lerped like the root.
+- Each joint's arc stays the same from frame to frame: the shorter one where the weight is
+  nearest 1/2, and from there whichever continues it. Taking the shorter arc on every frame flips
+  to the other way round wherever the two sources' rotations pass half a turn apart (a leg the
+  simulation kicked high faded into a planted clip leg: the foot jumped 1.3 m in a frame).
 - A root with a single child (a ground bone above the hips: Bandai Namco's joint_Root, iClone's
   BoneRoot) has that child faded in world space, its position lerped and its rotation slerped; its
   offset from the (lerped) root takes up the difference, as the hips' own position channels do in
@@ -49,7 +53,8 @@ def blend(a: Motion, b: Motion, weights: np.ndarray) -> Motion:
         )
     w = np.asarray(weights, dtype=float)
     root = a.root_pos + (b.root_pos - a.root_pos) * w[:, None]
-    rot = quat.slerp(a.local_rot, b.local_rot, np.broadcast_to(w[:, None], a.local_rot.shape[:2]))
+    arcs = _continuous_arcs(a.local_rot, b.local_rot, w)
+    rot = quat.slerp(a.local_rot, arcs, np.broadcast_to(w[:, None], a.local_rot.shape[:2]), shortest=False)
     rot[w == 0] = a.local_rot[w == 0]
     rot[w == 1] = b.local_rot[w == 1]
     root[w == 1] = b.root_pos[w == 1]
@@ -58,6 +63,19 @@ def blend(a: Motion, b: Motion, weights: np.ndarray) -> Motion:
     moved = _single_child_in_world(a, b, w, root, rot, local_pos)
     keep = moved or a.local_pos is not None or b.local_pos is not None
     return Motion(a.skeleton, a.fps, root, rot, local_pos if keep else None)
+
+
+def _continuous_arcs(a: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """`b` (T, ..., 4) signed so that slerping from `a` takes, per joint, the shorter arc on the
+    frame whose weight is nearest 1/2 and an arc continuous in time from there: the relative
+    rotation a^-1 b keeps its sign from one frame to the next."""
+    relative = quat.mul(quat.conj(a), b)
+    flips = np.sum(relative[1:] * relative[:-1], axis=-1) < 0  # (T - 1, ...): the sign turns over
+    turns = np.concatenate([np.zeros_like(flips[:1], dtype=int), np.cumsum(flips, axis=0)])
+    middle = int(np.argmin(np.abs(w - 0.5)))
+    sign = np.where((turns - turns[middle]) % 2 == 1, -1.0, 1.0)
+    sign *= np.where(relative[middle, ..., 0] < 0, -1.0, 1.0)
+    return b * sign[..., None]
 
 
 def _single_child_in_world(
@@ -79,7 +97,8 @@ def _single_child_in_world(
     world = worlds[0] + (worlds[1] - worlds[0]) * w[between, None]
     turn = rot[between, 0]
     offsets[between, kid] = quat.rotate(quat.conj(turn), world - root[between])
-    rot[between, kid] = quat.mul(quat.conj(turn), quat.slerp(turns[0], turns[1], w[between]))
+    arcs = _continuous_arcs(turns[0], turns[1], w[between])
+    rot[between, kid] = quat.mul(quat.conj(turn), quat.slerp(turns[0], arcs, w[between], shortest=False))
     return True
 
 

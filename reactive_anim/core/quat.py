@@ -243,14 +243,18 @@ def angle_between(a: ArrayLike, b: ArrayLike) -> np.ndarray:
     return 2.0 * np.arctan2(np.linalg.norm(d[..., 1:], axis=-1), np.abs(d[..., 0]))
 
 
-def slerp(a: ArrayLike, b: ArrayLike, t: ArrayLike) -> np.ndarray:
-    """Spherical interpolation along the shorter arc; `t` broadcasts against `(...)`."""
+def slerp(a: ArrayLike, b: ArrayLike, t: ArrayLike, *, shortest: bool = True) -> np.ndarray:
+    """Spherical interpolation along the shorter arc; `t` broadcasts against `(...)`.
+
+    shortest=False: along the arc toward `b` as signed (the longer way round where <a, b> < 0), for
+    a caller that keeps the arc continuous over time (blend.blend)."""
     a = normalize(a)
     b = normalize(b)
     t = np.asarray(t, dtype=float)[..., None]
     dot = np.sum(a * b, axis=-1, keepdims=True)
-    b = np.where(dot < 0, -b, b)
-    dot = np.abs(dot)
+    if shortest:
+        b = np.where(dot < 0, -b, b)
+        dot = np.abs(dot)
     theta = np.arccos(np.clip(dot, -1.0, 1.0))
     sin_theta = np.sin(theta)
     near = sin_theta < 1e-6

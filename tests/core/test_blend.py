@@ -86,3 +86,18 @@ def test_hips_under_a_ground_root_fade_along_the_line_between_the_sources(walk, 
     assert np.array_equal(out.local_pos[0], a.joint_offsets()[0]) and np.array_equal(
         out.local_pos[-1], b.joint_offsets()[-1]
     )
+
+
+def test_a_joint_passing_half_a_turn_from_the_other_source_keeps_its_arc(walk) -> None:
+    """One source turns a joint steadily past half a turn from the other's (a leg the simulation
+    kicked high against a planted clip leg): the shorter arc on each frame would switch sides there
+    and the joint jump by about half a turn; the fade keeps one arc, at most 11 degrees a frame."""
+    a, b = walk.slice(0, 30), walk.slice(0, 30)
+    angles = np.radians(150.0 + 2.0 * np.arange(30))  # 180 degrees apart at frame 15
+    a.local_rot[:, 1] = quat.from_axis_angle(np.array([0.0, 0.0, 1.0]), angles)
+    b.local_rot[:, 1] = quat.identity((30,))
+    out = blend(a, b, fade_weights(30))
+    steps = np.degrees(quat.angle_between(out.local_rot[1:, 1], out.local_rot[:-1, 1]))
+    assert steps.max() < 15.0, steps.max()
+    shortest = quat.slerp(a.local_rot[:, 1], b.local_rot[:, 1], fade_weights(30))
+    assert np.degrees(quat.angle_between(shortest[1:], shortest[:-1])).max() > 90.0  # what it did before
