@@ -465,6 +465,18 @@ def _set_servos(ws: Workspace, gains: ServoGains) -> None:
     model.actuator_biasprm[:, 2] = -kv
 
 
+def _same_turns(ragdoll: Ragdoll, targets: np.ndarray, start: np.ndarray) -> None:
+    """Shift each hinge's target angles (K, nq) by whole turns, in place, so that the first lies
+    within half a turn of the start's. Angles are unwrapped along one motion's frames, so a start
+    from another motion (the end of BC, tracking a clip) can sit a whole turn from its target: a
+    shoulder raised overhead in a sword slash was 6.1 rad from the target it then tried to reach
+    (a 5,400 J jump in one frame, SimulationError)."""
+    hinges = ragdoll.hinge_qpos
+    turns = np.round((start[hinges] - targets[0, hinges]) / (2.0 * np.pi))
+    if np.any(turns):
+        targets[:, hinges] += 2.0 * np.pi * turns
+
+
 def _clamp_to_limits(ragdoll: Ragdoll, qpos: np.ndarray) -> np.ndarray:
     """Mocap beyond the profile's limits starts at the limit, so the first step does not snap it back."""
     qpos = qpos.copy()
@@ -943,6 +955,7 @@ def track(
     with _workspace(ragdoll, workspace) as ws:
         if isinstance(start, Motion):
             start = _state_from_table(ws, start, start_frame, _start_table(ragdoll, start, start_frame))
+        _same_turns(ragdoll, plan.targets, start.qpos)
         result = _run(ws, start, plan)
     result.frames = result.frames + target_start
     return result

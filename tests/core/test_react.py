@@ -234,3 +234,19 @@ def test_a_ground_root_stays_put_and_the_body_never_jumps_through_a_bake(library
     away = np.array([np.abs(hits - f).min() > 3 for f in range(len(speed))])
     assert speed[away].max() < 15.0, speed[away].max()  # the run itself: 5.3 m/s at most
     assert speed[:, sorted(hit)].max() < 50.0  # a hit body part starts at most at MAX_HIT_SPEED
+
+
+def test_a_push_on_a_sword_slash_with_the_arm_overhead_tracks_its_target(library) -> None:
+    """A Bandai Namco slash pushed twice, the second push landing during the first reaction while
+    the arm is raised overhead: the shoulder's target angles, unwrapped along the target's own
+    frames, started a whole turn (6.1 rad) from the simulated shoulder, whose servo then swung the
+    arm round (5,400 J in a frame: SimulationError). Both reactions now bake, with no pop: the
+    fastest thing is the left hand, 20 m/s, as the fade brings the arm down from overhead into the
+    clip's pose in a third of a second (the slash itself: 4 m/s)."""
+    motion = bvh.read_bvh(require_mocap("bandai_namco/dataset-1/dataset-1_slash_normal_001.bvh"))
+    impacts = [Impact(42.0, "Chest", (-0.842, -0.430, -0.325), 146.0),
+               Impact(52.0, "LowerArm_L", (-0.677, 0.692, -0.251), 48.0)]  # fmt: skip
+    baked = bake_reactions(motion, impacts, library, load_classifier())
+    assert len(baked.reactions) == 2
+    speed = np.linalg.norm(np.diff(baked.motion.global_positions(), axis=0), axis=-1).max(axis=1)
+    assert speed.max() * baked.motion.fps < 25.0
