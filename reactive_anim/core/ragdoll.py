@@ -93,7 +93,8 @@ PAPER_LIMITS = {
 # Normal active ranges of motion of adults, American Academy of Orthopaedic Surgeons, "Joint Motion:
 # Method of Measuring and Recording" (1965), as tabulated in Norkin & White, "Measurement of Joint
 # Motion" (5th ed., 2016), table of AAOS values. Rounded outward by up to 10 degrees where mocap
-# routinely goes there (a start pose beyond a limit is clamped to it). Per joint:
+# routinely goes there (a run whose start pose lies beyond a limit widens that range for the run,
+# simulate._set_limits). Per joint:
 # - waist + back share the thoracolumbar spine (AAOS: flexion 80, extension 25, lateral bending 35,
 #   rotation 45): lumbar-heavy flexion in the waist, most rotation in the back (White & Panjabi,
 #   "Clinical Biomechanics of the Spine", 2nd ed. 1990: lumbar axial rotation is a few degrees).
@@ -105,8 +106,8 @@ PAPER_LIMITS = {
 # - ankle: plantar flexion 50, inversion/eversion 35/15 about the foot's long axis (symmetric here,
 #   35). Dorsiflexion (AAOS 20 from the foot square to the shin) and forefoot abduction (10) are
 #   opened to 50 and 35: our zero is the standing foot, a crouch or a lunge in mocap reaches 40-50
-#   there, and a start pose clamped 30 degrees short put a toe 4 cm into the floor and threw the
-#   body up (the demo's push from the front, during a lunge).
+#   there, and a start pose clamped 30 degrees short (as starts were then) put a toe 4 cm into
+#   the floor and threw the body up (the demo's push from the front, during a lunge).
 # - shoulder: flexion 180, extension 60, abduction 180, adduction 50 (cross-body), rotation 70/90
 #   (symmetric here, 90: the twist hinge has no side-specific sign).
 # - wrist: flexion 80, extension 70, radial/ulnar deviation 20/30; the forearm's pronation and
@@ -195,7 +196,7 @@ class Ragdoll:
     servo gains) into its own Workspace (simulate.py), so runs on several threads do not interfere.
 
     limits: the profile's hinge ranges in degrees (JointLimits), the one source the model's joint
-      ranges and the simulation's start-state clamp are both made from.
+      ranges are made from (a run widens them to take in a start pose beyond them).
     neutral_global_rot (J, 4): the neutral pose, where every MuJoCo joint angle is zero and every
       body frame equals the world frame.
     body_of_joint (J,): the body each skeleton joint belongs to (index into bodies; joints above the

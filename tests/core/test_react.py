@@ -250,3 +250,20 @@ def test_a_push_on_a_sword_slash_with_the_arm_overhead_tracks_its_target(library
     assert len(baked.reactions) == 2
     speed = np.linalg.norm(np.diff(baked.motion.global_positions(), axis=0), axis=-1).max(axis=1)
     assert speed.max() * baked.motion.fps < 25.0
+
+
+def test_a_push_on_a_character_sitting_on_the_floor_starts_from_its_pose(library) -> None:
+    """A Bandai Namco walk pushed into a backward fall and its sitting get-up, then pushed on the
+    chest while sitting: the sitting hips are flexed 154 degrees, beyond the ragdoll's 120. Clamped
+    to the limit at the start, the legs swung 30 cm into the floor and the contacts threw the body a
+    metre up; the run now starts in the mocap's pose and the hips stay near the floor."""
+    motion = bvh.read_bvh(require_mocap("bandai_namco/dataset-1/dataset-1_walk-back_tired_001.bvh"))
+    first = [Impact(41.0, "Shoulder_L", (-0.189, 0.965, -0.182), 153.0),
+             Impact(60.0, "Hand_R", (0.668, 0.646, 0.37), 37.9)]  # fmt: skip
+    sitting = bake_reactions(motion, first, library, load_classifier()).motion
+    hips = sitting.skeleton.index("Hips")
+    assert sitting.global_positions()[123, hips, 2] < 0.2  # on the floor when the chest is pushed
+    pushed = react(sitting, Impact(123.0, "Chest", (-0.712, 0.596, -0.371), 39.1), library, load_classifier(),
+                   source=motion)  # fmt: skip
+    rise = pushed.motion.global_positions()[123:134, hips, 2] - sitting.global_positions()[123, hips, 2]
+    assert rise.max() < 0.15, rise.max()
