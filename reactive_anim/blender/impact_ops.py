@@ -127,7 +127,7 @@ class REACTIVE_ANIM_OT_add_impact(bpy.types.Operator):
         name="Strength",
         description=(
             "Impulse in N·s: 30 is a shove, 100 a strong push, 300 a tackle "
-            "(on the trunk: a hand or foot takes 50-150 at most)"
+            "(on the trunk: a hand or foot takes 50-190 at most)"
         ),
         default=impacts.DEFAULT_STRENGTH,
         min=0.0,

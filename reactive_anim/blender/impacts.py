@@ -54,7 +54,7 @@ class REACTIVE_ANIM_PG_impact(bpy.types.PropertyGroup):
         name="Strength",
         description=(
             "Impulse in N·s: 30 is a shove, 100 a strong push, 300 a tackle "
-            "(on the trunk: a hand or foot takes 50-150 at most)"
+            "(on the trunk: a hand or foot takes 50-190 at most)"
         ),
         default=DEFAULT_STRENGTH,
         min=0.0,

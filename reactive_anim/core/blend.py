@@ -16,12 +16,12 @@ What we choose where the paper is silent, and why:
   to the other way round wherever the two sources' rotations pass half a turn apart (a leg the
   simulation kicked high faded into a planted clip leg: the foot jumped 1.3 m in a frame).
 - A root with a single child (a ground bone above the hips: Bandai Namco's joint_Root, iClone's
-  BoneRoot) has that child faded in world space, its position lerped and its rotation slerped; its
-  offset from the (lerped) root takes up the difference, as the hips' own position channels do in
-  those files. Blended through the root, the root's turn swings the hips on an arc as wide as their
-  offset from the root, which there carries the walk (4.5 m in a shared run): two sources half a
+  BoneRoot) has that child faded in world space, its position lerped and its rotation slerped.
+  Blended through the root, the root's turn swings the hips on an arc as wide as their offset from
+  the root, which in the Bandai files carries the walk (4.5 m in a shared run): two sources half a
   turn apart put the hips 4 m off their path for a few frames, at up to 76 m/s, and a next push
-  simulated from there exploded.
+  simulated from there exploded. Where a source animates that offset (position channels), the
+  offset takes up the difference; where both hang the hips on the rest bone, the root moves.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ import numpy as np
 
 from . import quat
 from .errors import SkeletonError
-from .skeleton import Motion
+from .skeleton import Motion, child_in_world, root_child
 from .window import yaw_rotate
 
 
@@ -44,7 +44,8 @@ def fade_weights(frames: int) -> np.ndarray:
 
 def blend(a: Motion, b: Motion, weights: np.ndarray) -> Motion:
     """Per frame, `a` faded into `b` by weights (T,) in [0, 1]: root and joint offsets lerped, joint
-    rotations slerped (shortest arc). Weight 0 gives `a`'s frame exactly, 1 gives `b`'s."""
+    rotations slerped (one arc per joint, see the module docstring), a root's single child in world
+    space. Weight 0 gives `a`'s frame exactly, 1 gives `b`'s."""
     if a.skeleton.names != b.skeleton.names:
         raise SkeletonError("can only blend motions of the same skeleton")
     if not (a.num_frames == b.num_frames == len(weights)):
@@ -58,48 +59,54 @@ def blend(a: Motion, b: Motion, weights: np.ndarray) -> Motion:
     rot[w == 0] = a.local_rot[w == 0]
     rot[w == 1] = b.local_rot[w == 1]
     root[w == 1] = b.root_pos[w == 1]
-    pa, pb = a.joint_offsets(), b.joint_offsets()
-    local_pos = pa + (pb - pa) * w[:, None, None]
-    moved = _single_child_in_world(a, b, w, root, rot, local_pos)
-    keep = moved or a.local_pos is not None or b.local_pos is not None
-    return Motion(a.skeleton, a.fps, root, rot, local_pos if keep else None)
+    local_pos = None
+    if a.local_pos is not None or b.local_pos is not None:
+        pa, pb = a.joint_offsets(), b.joint_offsets()
+        local_pos = pa + (pb - pa) * w[:, None, None]
+        local_pos[w == 1] = pb[w == 1]
+    local_pos = _single_child_in_world(a, b, w, root, rot, local_pos)
+    return Motion(a.skeleton, a.fps, root, rot, local_pos)
 
 
 def _continuous_arcs(a: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.ndarray:
     """`b` (T, ..., 4) signed so that slerping from `a` takes, per joint, the shorter arc on the
     frame whose weight is nearest 1/2 and an arc continuous in time from there: the relative
     rotation a^-1 b keeps its sign from one frame to the next."""
+    if len(w) == 0:
+        return b
     relative = quat.mul(quat.conj(a), b)
-    flips = np.sum(relative[1:] * relative[:-1], axis=-1) < 0  # (T - 1, ...): the sign turns over
-    turns = np.concatenate([np.zeros_like(flips[:1], dtype=int), np.cumsum(flips, axis=0)])
+    steady = quat.make_continuous(relative)
     middle = int(np.argmin(np.abs(w - 0.5)))
-    sign = np.where((turns - turns[middle]) % 2 == 1, -1.0, 1.0)
-    sign *= np.where(relative[middle, ..., 0] < 0, -1.0, 1.0)
-    return b * sign[..., None]
+    steady *= np.where(steady[middle, ..., :1] < 0, -1.0, 1.0)
+    return np.where(np.sum(steady * relative, axis=-1, keepdims=True) < 0, -b, b)
 
 
 def _single_child_in_world(
-    a: Motion, b: Motion, w: np.ndarray, root: np.ndarray, rot: np.ndarray, offsets: np.ndarray
-) -> bool:
-    """The root's only child faded in world space (see the module docstring), in place, on the
-    frames strictly between the sources (weights 0 and 1 keep a source's frame exactly); whether
-    there was one to fade."""
-    kids = np.flatnonzero(a.skeleton.parents == 0)
+    a: Motion, b: Motion, w: np.ndarray, root: np.ndarray, rot: np.ndarray, offsets: np.ndarray | None
+) -> np.ndarray | None:
+    """The root's only child faded in world space (see the module docstring), in place on root and
+    rot, on the frames strictly between the sources (weights 0 and 1 keep a source's frame).
+    Returns the offsets: where either source animates the child's offset, it takes up the
+    difference and the root goes straight; where both hang it on its rest bone, the bone keeps its
+    length and the root moves to hang it there."""
+    kid = root_child(a.skeleton)
     between = np.flatnonzero((w > 0) & (w < 1))
-    if len(kids) != 1 or len(between) == 0:
-        return False
-    kid = int(kids[0])
-    worlds, turns = [], []
-    for source in (a, b):
-        source_root = source.local_rot[between, 0]
-        worlds.append(source.root_pos[between] + quat.rotate(source_root, source.joint_offsets()[between, kid]))
-        turns.append(quat.mul(source_root, source.local_rot[between, kid]))
-    world = worlds[0] + (worlds[1] - worlds[0]) * w[between, None]
+    if kid is None or len(between) == 0:
+        return offsets
+    (world_a, turn_a), (world_b, turn_b) = child_in_world(a, between, kid), child_in_world(b, between, kid)
+    t = w[between]
+    world = world_a + (world_b - world_a) * t[:, None]
     turn = rot[between, 0]
-    offsets[between, kid] = quat.rotate(quat.conj(turn), world - root[between])
-    arcs = _continuous_arcs(turns[0], turns[1], w[between])
-    rot[between, kid] = quat.mul(quat.conj(turn), quat.slerp(turns[0], arcs, w[between], shortest=False))
-    return True
+    rest = a.skeleton.offsets[kid]
+    if offsets is None or all(
+        np.array_equal(m.joint_offsets()[between, kid], np.broadcast_to(rest, world.shape)) for m in (a, b)
+    ):
+        root[between] = world - quat.rotate(turn, np.broadcast_to(rest, world.shape))
+    else:
+        offsets[between, kid] = quat.rotate(quat.conj(turn), world - root[between])
+    arcs = _continuous_arcs(turn_a, turn_b, t)
+    rot[between, kid] = quat.mul(quat.conj(turn), quat.slerp(turn_a, arcs, t, shortest=False))
+    return offsets
 
 
 def place(motion: Motion, yaw: float, offset: tuple[float, float]) -> Motion:

@@ -24,7 +24,7 @@ class Impact:
     direction: world direction of the push (Z up); normalised here, so any non-zero length is fine.
     strength: the impulse in N·s (>= 0). For scale: 30 is a shove, 100 a strong push, 300 a tackle
       (on the trunk; simulate.MAX_HIT_SPEED refuses what would start the hit body part faster than
-      50 m/s: a hand or a foot takes 50-150 N·s).
+      50 m/s: a hand or a foot takes 50-190 N·s).
     reaction: optional reaction-class slug that overrides the classifier (None: let it decide).
     """
 

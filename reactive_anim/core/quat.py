@@ -244,17 +244,17 @@ def angle_between(a: ArrayLike, b: ArrayLike) -> np.ndarray:
 
 
 def slerp(a: ArrayLike, b: ArrayLike, t: ArrayLike, *, shortest: bool = True) -> np.ndarray:
-    """Spherical interpolation along the shorter arc; `t` broadcasts against `(...)`.
-
-    shortest=False: along the arc toward `b` as signed (the longer way round where <a, b> < 0), for
-    a caller that keeps the arc continuous over time (blend.blend)."""
+    """Spherical interpolation; `t` broadcasts against `(...)`. Along the shorter arc, or with
+    shortest=False along the arc toward `b` as signed (the longer way round where <a, b> < 0), for
+    a caller that keeps the arc continuous over time (blend.blend); a whole turn (b = -a) has no
+    axis to take and goes the short way, staying at `a`."""
     a = normalize(a)
     b = normalize(b)
     t = np.asarray(t, dtype=float)[..., None]
     dot = np.sum(a * b, axis=-1, keepdims=True)
-    if shortest:
-        b = np.where(dot < 0, -b, b)
-        dot = np.abs(dot)
+    flip = dot < 0 if shortest else dot < -1.0 + 1e-12
+    b = np.where(flip, -b, b)
+    dot = np.where(flip, -dot, dot)
     theta = np.arccos(np.clip(dot, -1.0, 1.0))
     sin_theta = np.sin(theta)
     near = sin_theta < 1e-6

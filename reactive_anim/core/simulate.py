@@ -82,7 +82,8 @@ ENERGY_ALLOWANCE_SPEED = 10.0
 # m/s: the most an impact may set the hit body's centre of mass moving, faster than a batted ball
 # (about 45 m/s). Pushes beyond it are refused before simulating: no hit does that to a body part,
 # and past 57-86 m/s on the head and upper arms, 95-190 on a hand, the joints spun beyond
-# MAX_JOINT_SPEED (measured on four walks; a hand reaches 50 m/s at 50-190 N·s, the head at 530-880).
+# MAX_JOINT_SPEED (measured on five walks; a hand or foot reaches 50 m/s at 50-190 N·s, the head at
+# 530-880).
 MAX_HIT_SPEED = 50.0
 _WARNINGS = ("mjWARN_BADQACC", "mjWARN_BADQVEL", "mjWARN_BADQPOS", "mjWARN_CNSTRFULL", "mjWARN_CONTACTFULL")
 _WARNING_IDS = np.array([int(getattr(mujoco.mjtWarning, name)) for name in _WARNINGS], dtype=int)
@@ -905,7 +906,8 @@ def _check_hit_speed(ws: Workspace, start: SimState, impact: Impact, body_id: in
     _place_bodies(ws, start.held)
     data = _fresh(ws.kin_data)
     data.qpos[:] = start.qpos
-    mujoco.mj_fwdPosition(model, data)  # kinematics and the factored mass matrix
+    for step in (mujoco.mj_kinematics, mujoco.mj_comPos, mujoco.mj_crb, mujoco.mj_factorM):
+        step(model, data)  # the factored mass matrix at the start pose (no contacts: no warnings)
     jacobian = np.zeros((3, model.nv))
     mujoco.mj_jacBodyCom(model, data, jacobian, None, body_id)
     response = np.zeros((1, model.nv))

@@ -220,16 +220,34 @@ def resample(motion: Motion, times: np.ndarray) -> Motion:
     return Motion(motion.skeleton, fps, root, rot, local_pos)
 
 
+def root_child(skeleton: Skeleton) -> int | None:
+    """The root's child when it has exactly one (a ground bone above the hips: Bandai Namco's
+    joint_Root, iClone's BoneRoot), else None."""
+    kids = np.flatnonzero(skeleton.parents == 0)
+    return int(kids[0]) if len(kids) == 1 else None
+
+
+def child_in_world(motion: Motion, frames: np.ndarray, child: int) -> tuple[np.ndarray, np.ndarray]:
+    """World position (n, 3) and rotation (n, 4) of a child of the root on the given frames."""
+    turn = motion.local_rot[frames, 0]
+    world = motion.root_pos[frames] + quat.rotate(turn, motion.joint_offsets()[frames, child])
+    return world, quat.mul(turn, motion.local_rot[frames, child])
+
+
+def _root_at(motion: Motion, pos: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """Per frame, whether the root stands at (pos, rot), to a micrometre and q or -q alike."""
+    near = np.abs(motion.root_pos - pos).max(axis=1) <= 1e-6
+    return near & (np.abs(motion.local_rot[:, 0] @ rot) >= 1.0 - 1e-12)
+
+
 def static_root(motion: Motion) -> tuple[np.ndarray, np.ndarray] | None:
     """The root's one transform (position, rotation) when it never moves and has a single child:
     a ground bone that stays put while the hips' own channels carry the walk (Bandai Namco's
-    joint_Root); None otherwise."""
-    if np.count_nonzero(motion.skeleton.parents == 0) != 1:
+    joint_Root, in 68 of the 72 shared files); None otherwise."""
+    if root_child(motion.skeleton) is None:
         return None
-    pos, rot = motion.root_pos[0], motion.local_rot[0, 0]
-    if np.abs(motion.root_pos - pos).max() > 1e-6 or np.abs(motion.local_rot[:, 0] - rot).max() > 1e-9:
-        return None
-    return pos.copy(), rot.copy()
+    pos, rot = motion.root_pos[0].copy(), motion.local_rot[0, 0].copy()
+    return (pos, rot) if np.all(_root_at(motion, pos, rot)) else None
 
 
 def hold_root(motion: Motion, pos: np.ndarray, rot: np.ndarray) -> Motion:
@@ -238,15 +256,16 @@ def hold_root(motion: Motion, pos: np.ndarray, rot: np.ndarray) -> Motion:
     A reaction's sources put such a root wherever their own conventions do (the simulation moves it
     with the pelvis, a placed clip turns it about the origin), and fading between them sent the
     root bone metres across the floor. Frames whose root is already there stay bit for bit."""
-    kid = int(np.flatnonzero(motion.skeleton.parents == 0)[0])
-    moved = np.flatnonzero(np.any(motion.root_pos != pos, axis=1) | np.any(motion.local_rot[:, 0] != rot, axis=1))
+    kid = root_child(motion.skeleton)
+    if kid is None:
+        raise SkeletonError("hold_root needs a root with a single child")
+    moved = np.flatnonzero(~_root_at(motion, pos, rot))
     if len(moved) == 0:
         return motion
-    turn = motion.local_rot[moved, 0]
-    world = motion.root_pos[moved] + quat.rotate(turn, motion.joint_offsets()[moved, kid])
-    back = quat.conj(np.broadcast_to(rot, turn.shape))
+    world, turned = child_in_world(motion, moved, kid)
+    back = quat.conj(np.broadcast_to(rot, turned.shape))
     root_pos, local_rot, local_pos = motion.root_pos.copy(), motion.local_rot.copy(), motion.joint_offsets().copy()
     root_pos[moved], local_rot[moved, 0] = pos, rot
     local_pos[moved, kid] = quat.rotate(back, world - pos)
-    local_rot[moved, kid] = quat.mul(back, quat.mul(turn, motion.local_rot[moved, kid]))
+    local_rot[moved, kid] = quat.mul(back, turned)
     return replace(motion, root_pos=root_pos, local_rot=local_rot, local_pos=local_pos)

@@ -71,8 +71,9 @@ def _on_ground_root(motion: Motion, animated: bool) -> Motion:
 def test_hips_under_a_ground_root_fade_along_the_line_between_the_sources(walk, animated) -> None:
     """Two sources whose ground roots are half a turn apart (a placed clip and the character):
     blended through the root's turn, the hips would swing on an arc as wide as their offset from
-    the root; in world space they go straight from one source's hips to the other's, and the
-    root goes straight too, the hips' offset from it taking up the difference."""
+    the root; in world space they go straight from one source's hips to the other's. With the
+    hips' offset animated the root goes straight too and the offset takes up the difference; with
+    both on the rest bone, the bone keeps its length and the root moves to hang the hips."""
     a = _on_ground_root(walk.slice(0, 30), animated)
     b = place(_on_ground_root(walk.slice(100, 130), animated), 0.9 * np.pi, (4.0, -2.0))
     w = fade_weights(30)
@@ -82,10 +83,20 @@ def test_hips_under_a_ground_root_fade_along_the_line_between_the_sources(walk, 
     assert np.abs(hips[2][0][:, 1] - line).max() < 1e-9
     turned = quat.slerp(hips[0][1][:, 1], hips[1][1][:, 1], w)
     assert quat.angle_between(hips[2][1][:, 1], turned).max() < 1e-9
-    assert np.array_equal(out.root_pos, a.root_pos + (b.root_pos - a.root_pos) * w[:, None])
-    assert np.array_equal(out.local_pos[0], a.joint_offsets()[0]) and np.array_equal(
-        out.local_pos[-1], b.joint_offsets()[-1]
-    )
+    if animated:
+        assert np.array_equal(out.root_pos, a.root_pos + (b.root_pos - a.root_pos) * w[:, None])
+        assert np.array_equal(out.local_pos[0], a.local_pos[0]) and np.array_equal(out.local_pos[-1], b.local_pos[-1])
+    else:
+        assert out.local_pos is None  # the bone keeps its rest length on every frame
+        assert np.array_equal(out.root_pos[[0, -1]], np.stack([a.root_pos[0], b.root_pos[-1]]))
+
+
+def test_a_single_frame_or_none_blends() -> None:
+    """The get-up chain can fade over one frame (blend of length 1); an empty blend is empty."""
+    walk = bvh.read_bvh(REPO / "sample_clips" / "walk.bvh")
+    one = blend(walk.slice(0, 1), walk.slice(50, 51), fade_weights(1))
+    assert np.array_equal(one.local_rot, walk.local_rot[50:51])
+    assert blend(walk.slice(0, 0), walk.slice(0, 0), fade_weights(0)).num_frames == 0
 
 
 def test_a_joint_passing_half_a_turn_from_the_other_source_keeps_its_arc(walk) -> None:
