@@ -5,12 +5,12 @@
     .venv/bpy-5.0/bin/python -m tools.benchmarks search     # the same, as a module
 
 Groups: bvh (parse throughput), blender (import, read_motion, write_motion in bpy), sim (ragdoll
-build, step, BC and CD windows), search (the jump search against the reference), react (the
-reaction pipeline per impact and a 20-impact bake), cast (search costs on other skeletons,
-retarget time). Real mocap comes from ../shared/mocap (test and benchmark data only); a group
-that needs it is skipped with a note where it is absent. Each timing is the best of several runs
-(the least disturbed by other work on the machine), with the run count printed beside it.
-"""
+build, step, BC and CD windows), search (the jump search against the reference), react (the reaction
+pipeline per impact and a 20-impact bake), cast (search costs on other skeletons, retarget time),
+sweep (random pushes baked on every shared file: failures, pops, time). Real mocap comes from
+../shared/mocap (test and benchmark data only); a group that needs it is skipped with a note where
+it is absent. Each timing is the best of several runs (the least disturbed by other work on the
+machine), with the run count printed beside it."""
 
 from __future__ import annotations
 
@@ -24,6 +24,7 @@ from .common import print_table
 from .react import bench_react
 from .search import bench_search
 from .sim import bench_sim
+from .sweep import bench_sweep
 
 GROUPS: dict[str, Callable[[], None]] = {
     "bvh": bench_bvh,
@@ -32,6 +33,7 @@ GROUPS: dict[str, Callable[[], None]] = {
     "search": bench_search,
     "react": bench_react,
     "cast": bench_casting,
+    "sweep": bench_sweep,
 }
 
 
