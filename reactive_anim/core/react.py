@@ -67,12 +67,11 @@ class ReactionSettings:
     reaction_window: BC, seconds of free physics after the hit [0.25, a human reaction time].
     transition: C to F, seconds of PD tracking faded into the clip [0.33].
     profile: the ragdoll's joint profile, "anatomical" or "paper" (ragdoll.py) ["anatomical"].
-    search_threshold: Eq. 1 cost above which a class's best window is refused and the next
-      probable class is searched, then the whole library [40.0: the sample library's matches of
-      pushed walks cost 10-40, and a whole-library search picks by the pre-impact pose, not by
-      what the push does, so a predicted class is kept unless its best window is clearly poor].
-    min_probability: classes less probable than this are not searched by name (the whole-library
-      fallback still covers them) [0.1].
+    search_threshold: Eq. 1 cost above which a class's best window passes the search on to the
+      next probable class; when none is within it, the most probable class's best window is used
+      anyway, marked not accepted (search_with_fallback) [40.0: the sample library's matches of
+      pushed walks cost 10-40].
+    min_probability: classes less probable than this are not searched [0.1].
     resume: after a reaction that ends standing, resume the original motion [True].
     chain_blend: seconds over which a chained get-up fades in where the fall ends [0.2].
     assist: the root assist that keeps the body up during CD (balance.py), None for the paper's
@@ -363,7 +362,7 @@ def _query_ending_at(before: Motion, frame_c: int, casting: Casting, impact: Imp
 def _search(
     library: Library, query: Query, impact: Impact, probabilities: np.ndarray | None, settings: ReactionSettings
 ) -> Match:
-    """The override's class alone; else the probable classes in order, then the whole library."""
+    """The override's class alone; else the probable classes in order (search_with_fallback)."""
     if impact.reaction is not None:
         return search(library, query, [impact.reaction], settings.search_threshold)
     if probabilities is None:
