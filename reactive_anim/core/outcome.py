@@ -36,8 +36,9 @@ push (Hof et al. 2010: foot placement needs at least 0.3 s), i.e. 0.3 s - (C - B
 moves the CoP at most MAX_STEP_LENGTH; each further step takes STEP_TIME. So
     e_1 = e e^(w0 t_1) - l_max,  e_(n+1) = e_n e^(w0 dt_s) - l_max,
 and the push is captured in the first n steps with e_n <= 0. If the excess
-grows anyway (e_n beyond l_max / (e^(w0 dt_s) - 1), Koolen's infinite-step capture region) or a
-body other than a foot already touches the floor at C, the character falls.
+grows anyway (e_n beyond l_max / (e^(w0 dt_s) - 1), Koolen's infinite-step capture region), a
+body other than a foot already touches the floor at C, or the centre of mass is already low and
+sinking at C (the pendulum's constant height no longer holds: COLLAPSE_HEIGHT), the character falls.
 
 CONSTANTS, with their reasons:
 - SWAY_TOLERANCE 0.08 leg lengths: two standard deviations of step-to-step foot placement in
@@ -92,6 +93,13 @@ FALL_FROUDE = 1.0  # v^2 / (g L) at the upper limit of walking (Alexander 1989)
 STANDING_SPEED = 0.2  # m/s: standing sways stay under 0.1; the slowest walks in ../shared/mocap move at 0.3-0.5
 SIDE_ANGLE = 45.0  # degrees off the facing axis beyond which a push counts as sideways
 MAX_STEPS = 8  # corrective steps counted before a push counts as not capturable (the series has converged)
+# A body whose centre of mass is already this low at C (leg lengths above the floor; standing is
+# about 1.1) and sinking this fast (m/s) is falling whatever its XCoM says: the pendulum model holds
+# the height constant. Chosen so that no label changes on pushes from the sample clips (13 of 1,500
+# cross both, all already falls by the XCoM); a push during an earlier reaction's deep crouch sank
+# to 0.3 leg lengths at 2 m/s and was judged a step.
+COLLAPSE_HEIGHT = 0.75
+COLLAPSE_SPEED = 0.8
 
 
 @dataclass(frozen=True)
@@ -102,6 +110,7 @@ class Outcome:
     direction: "forward", "backward" or "side". xcom_shift: d_xi in the facing frame (forward,
     left), m. excess: e, m (negative: inside the support's reach). speed: the centre of mass's
     horizontal velocity along d_xi, m/s. down: a body other than the feet is on the floor at C.
+    collapsing: the centre of mass is low and sinking at C (collapsing()).
     """
 
     reaction: str
@@ -111,6 +120,13 @@ class Outcome:
     excess: float
     speed: float
     down: bool
+    collapsing: bool = False
+
+
+def collapsing(body: Body, com: np.ndarray, com_velocity: np.ndarray, floor: float) -> bool:
+    """Whether the body is already going down at C: its centre of mass below COLLAPSE_HEIGHT leg
+    lengths and sinking faster than COLLAPSE_SPEED (see the constants)."""
+    return bool(com[2] - floor < COLLAPSE_HEIGHT * body.leg_length and com_velocity[2] < -COLLAPSE_SPEED)
 
 
 def judge(body: Body, state: ReactionState, window: float = REACTION_WINDOW) -> Outcome:
@@ -119,7 +135,8 @@ def judge(body: Body, state: ReactionState, window: float = REACTION_WINDOW) -> 
     norm = float(np.linalg.norm(shift))
     excess = norm - state.reach()
     omega = state.omega()
-    steps = None if state.support.down else _steps_to_capture(excess, omega, body.leg_length, window)
+    sinking = collapsing(body, state.com_c, state.com_velocity, state.floor)
+    steps = None if state.support.down or sinking else _steps_to_capture(excess, omega, body.leg_length, window)
     frame = state.facing(body)[:2, :2]
     local = frame @ shift
     direction = _direction(local)
@@ -128,7 +145,7 @@ def judge(body: Body, state: ReactionState, window: float = REACTION_WINDOW) -> 
     reaction = _reaction(
         steps, direction, speed, body.leg_length, travel=(float(frame[0] @ travel), float(np.linalg.norm(travel)))
     )
-    return Outcome(reaction, steps, direction, local, excess, speed, state.support.down)
+    return Outcome(reaction, steps, direction, local, excess, speed, state.support.down, sinking)
 
 
 def _direction(local: np.ndarray) -> str:

@@ -40,9 +40,11 @@ from .blend import blend, fade_weights, place
 from .casting import Casting
 from .classes import CLASS_SLUGS
 from .errors import Cancelled, ImpactError, LibraryError, SkeletonError
+from .features import Body, FeatureReader
 from .footing import hold_feet
 from .impact import Impact
 from .library import Library
+from .outcome import collapsing, judge
 from .ragdoll import Ragdoll, build_ragdoll
 from .search import Match, search, search_with_fallback
 from .simulate import SimResult, Workspace, simulate_impact, track
@@ -112,6 +114,8 @@ class Reaction:
       its frame E (the window's last, matched to C) where the simulated body is at C.
     chained: the get-up clip that followed, if any; resumed_at: the original motion's frame at
       which it resumed (None: held the last pose, or resume off).
+    going_down: the body was already falling at C (low and sinking), so the class is the outcome
+      rule's fall rather than the classifier's first choice (_going_down).
     timings: seconds per step (bc, classify, search, cd, blend, splice, total).
     """
 
@@ -131,6 +135,7 @@ class Reaction:
     placement: tuple[float, tuple[float, float]]
     chained: str | None
     resumed_at: int | None
+    going_down: bool = False
     timings: dict[str, float] = field(default_factory=dict)
     motion: Motion | None = field(default=None, repr=False)
 
@@ -191,9 +196,10 @@ def react(
     frame_c = int(bc.frames[-1])
     clock.lap("bc")
     probabilities = _probabilities(classifier, motion, bc, ragdoll)
+    falling = None if impact.reaction is not None else _going_down(motion, bc, ragdoll, impact)
     clock.lap("classify")
     query = _query_ending_at(before, frame_c, casting, impact)
-    match = _search(library, query, impact, probabilities, settings)
+    match = _search(library, query, impact, probabilities, settings, falling)
     clock.lap("search")
     clip_raw = casting.clip(match.clip, motion.fps)
     # E: the window's last frame on the character's clock (a clip resampled to a frame rate such as
@@ -246,6 +252,7 @@ def react(
         placement=placement,
         chained=chained,
         resumed_at=resumed_at,
+        going_down=falling is not None,
         timings=clock.total(),
         motion=out,
     )
@@ -360,14 +367,24 @@ def _query_ending_at(before: Motion, frame_c: int, casting: Casting, impact: Imp
 
 
 def _search(
-    library: Library, query: Query, impact: Impact, probabilities: np.ndarray | None, settings: ReactionSettings
+    library: Library,
+    query: Query,
+    impact: Impact,
+    probabilities: np.ndarray | None,
+    settings: ReactionSettings,
+    falling: str | None = None,
 ) -> Match:
-    """The override's class alone; else the probable classes in order (search_with_fallback)."""
+    """The override's class alone; a body going down, the rule's fall and then the other falls; else
+    the probable classes in order (search_with_fallback)."""
     if impact.reaction is not None:
         return search(library, query, [impact.reaction], settings.search_threshold)
+    ranked = range(len(CLASS_SLUGS)) if probabilities is None else np.argsort(-probabilities, kind="stable")
+    order = [CLASS_SLUGS[k] for k in ranked]
+    if falling is not None:
+        falls = [falling] + [slug for slug in order if slug.startswith("fall_") and slug != falling]
+        return search_with_fallback(library, query, falls, settings.search_threshold)
     if probabilities is None:
         return search(library, query, None, settings.search_threshold)
-    order = [CLASS_SLUGS[k] for k in np.argsort(-probabilities, kind="stable")]
     likely = [
         slug for slug, p in zip(order, np.sort(probabilities)[::-1], strict=True) if p >= settings.min_probability
     ]
@@ -376,6 +393,19 @@ def _search(
     if not likely:
         raise LibraryError("the library has no usable class for this reaction")
     return search_with_fallback(library, query, likely, settings.search_threshold)
+
+
+def _going_down(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact) -> str | None:
+    """The outcome rule's fall when the body is already going down at C (outcome.collapsing), else
+    None. The classifier learnt from pushes on walks, runs and stands and has not seen such states:
+    a push during an earlier reaction's deep crouch, the hips at 0.28 m and sinking at 2 m/s, came
+    out a sway at p = 1.00 and the character stood up out of the collapse (23 of 332 random pushes
+    on the shared mocap went down at C and were given a step or a sway)."""
+    body = Body.of(ragdoll.skeleton, ragdoll.roles)
+    if not collapsing(body, bc.com[-1], bc.com_velocity[-1], bc.floor):
+        return None
+    reader = FeatureReader(ragdoll)
+    return judge(body, reader.simulated(motion, bc), (bc.frames[-1] - impact.frame) / motion.fps).reaction
 
 
 def _chain(

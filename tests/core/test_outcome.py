@@ -17,7 +17,7 @@ import pytest
 from reactive_anim.core import outcome
 from reactive_anim.core.capture import Support, convex_hull, nearest_in_polygon
 from reactive_anim.core.features import Body, ReactionState
-from reactive_anim.core.outcome import judge
+from reactive_anim.core.outcome import COLLAPSE_HEIGHT, judge
 
 LEG = 0.9
 JOINTS = {"pelvis": 0, "chest": 1, "head": 2, "hip_l": 3, "hip_r": 4, "shoulder_l": 5, "shoulder_r": 6}
@@ -104,6 +104,18 @@ def test_a_sideways_push_caught_by_steps_sways_a_standing_character_and_steps_a_
 def test_a_body_already_on_the_floor_has_fallen():
     result = judge(BODY, state(velocity=(0.3, 0.0, 0.0), down=True))
     assert (result.steps, result.reaction) == (None, "fall_forward_hands")
+
+
+def test_a_body_low_and_sinking_at_c_is_falling_whatever_its_xcom():
+    """The pendulum keeps its height; a centre of mass already below COLLAPSE_HEIGHT leg lengths and
+    sinking faster than COLLAPSE_SPEED is going down (a push during a deep crouch), even with its
+    XCoM where a sway would keep it. Low but still, or sinking but high, it is not."""
+    drop = (0.0, 0.0, COLLAPSE_HEIGHT * LEG - 0.05 - COM[2])
+    low_and_sinking = judge(BODY, state(velocity=(0.3, 0.0, -1.5), moved=drop))
+    assert (low_and_sinking.steps, low_and_sinking.collapsing) == (None, True)
+    assert low_and_sinking.reaction.startswith("fall_")
+    assert judge(BODY, state(velocity=(0.3, 0.0, -0.2), moved=drop)).reaction == "sway_balance"
+    assert judge(BODY, state(velocity=(0.3, 0.0, -1.5))).reaction == "sway_balance"
 
 
 def test_a_departure_inside_the_feet_sways_and_the_tolerance_is_the_sway_limit():

@@ -271,3 +271,23 @@ def test_a_push_on_a_character_sitting_on_the_floor_starts_from_its_pose(library
                    source=motion)  # fmt: skip
     rise = pushed.motion.global_positions()[123:134, hips, 2] - sitting.global_positions()[123, hips, 2]
     assert rise.max() < 0.15, rise.max()
+
+
+def test_a_body_going_down_at_c_falls_instead_of_standing_up(library) -> None:
+    """A Bandai Namco walk pushed on the thigh (a deep crouch as it steps back), then on the hand
+    during that crouch: the weakened stance gives way, the hips at 0.28 m and sinking at 2 m/s at
+    C. The classifier, which never saw such a state, says sway at p = 1.00, and the character stood
+    up out of the collapse within the third of a second of the transition (hips back at 0.89 m,
+    walking on). Going down at C, the class is the outcome rule's fall: the hips come up no higher
+    than a kneeling body's through the transition (the clip's fall passes over the knees) and the
+    body ends on the floor before it gets up.
+    """
+    motion = bvh.read_bvh(require_mocap("bandai_namco/dataset-2/dataset-2_walk_normal_001.bvh"))
+    crouched = react(motion, Impact(80.0, "UpperLeg_L", (0.6, 0.77, 0.21), 150.0), library, load_classifier()).motion
+    pushed = react(crouched, Impact(90.0, "Hand_L", (-0.96, 0.24, 0.11), 60.0), library, load_classifier(),
+                   source=motion)  # fmt: skip
+    assert pushed.going_down and pushed.reaction_class.startswith("fall_")
+    assert pushed.probabilities["sway_balance"] > 0.9  # what the classifier alone would have done
+    hips = pushed.motion.global_positions()[:, pushed.motion.skeleton.index("Hips"), 2]
+    assert hips[pushed.frame_c : pushed.frame_f + 1].max() < 0.7  # standing: 0.89
+    assert hips[pushed.frame_f :].min() < 0.25 and pushed.chained is not None
