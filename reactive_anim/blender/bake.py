@@ -155,7 +155,7 @@ def _chosen_by(r: Reaction) -> str:
     if r.impact.reaction is not None:
         return "override"
     if r.going_down:
-        return "going down at C: the outcome rule's fall"
+        return "going down at C: a fall"
     if r.probabilities:
         return f"classifier, p={r.probabilities.get(r.reaction_class, 0.0):.2f}"
     return "whole-library search"

@@ -73,7 +73,8 @@ class ReactionSettings:
       next probable class; when none is within it, the most probable class's best window is used
       anyway, marked not accepted (search_with_fallback) [40.0: the sample library's matches of
       pushed walks cost 10-40].
-    min_probability: classes less probable than this are not searched [0.1].
+    min_probability: classes less probable than this are not searched, unless none that likely is
+      in the library (then its most probable class) or the body is going down (the falls) [0.1].
     resume: after a reaction that ends standing, resume the original motion [True].
     chain_blend: seconds over which a chained get-up fades in where the fall ends [0.2].
     assist: the root assist that keeps the body up during CD (balance.py), None for the paper's
@@ -114,8 +115,8 @@ class Reaction:
       its frame E (the window's last, matched to C) where the simulated body is at C.
     chained: the get-up clip that followed, if any; resumed_at: the original motion's frame at
       which it resumed (None: held the last pose, or resume off).
-    going_down: the body was already falling at C (low and sinking), so the class is the outcome
-      rule's fall rather than the classifier's first choice (_going_down).
+    going_down: the body was already down or going down at C, so the search looked among the falls,
+      the outcome rule's first (_going_down), rather than at the classifier's choice.
     timings: seconds per step (bc, classify, search, cd, blend, splice, total).
     """
 
@@ -196,7 +197,7 @@ def react(
     frame_c = int(bc.frames[-1])
     clock.lap("bc")
     probabilities = _probabilities(classifier, motion, bc, ragdoll)
-    falling = None if impact.reaction is not None else _going_down(motion, bc, ragdoll, impact)
+    falling = None if impact.reaction is not None else _going_down(motion, bc, ragdoll, impact, library)
     clock.lap("classify")
     query = _query_ending_at(before, frame_c, casting, impact)
     match = _search(library, query, impact, probabilities, settings, falling)
@@ -395,14 +396,20 @@ def _search(
     return search_with_fallback(library, query, likely, settings.search_threshold)
 
 
-def _going_down(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact) -> str | None:
-    """The outcome rule's fall when the body is already going down at C (outcome.collapsing), else
-    None. The classifier learnt from pushes on walks, runs and stands and has not seen such states:
-    a push during an earlier reaction's deep crouch, the hips at 0.28 m and sinking at 2 m/s, came
-    out a sway at p = 1.00 and the character stood up out of the collapse (23 of 332 random pushes
-    on the shared mocap went down at C and were given a step or a sway)."""
+def _going_down(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact, library: Library) -> str | None:
+    """The outcome rule's fall when the body is already down at C (a body other than the feet on the
+    floor) or going down (low and sinking, outcome.collapsing), else None (also when the library has
+    no falls). The classifier learnt from pushes on walks, runs and stands and has not seen such
+    states: a push during an earlier reaction's deep crouch, the hips at 0.28 m and sinking at 2 m/s,
+    came out a sway at p = 1.00 and the character stood up out of the collapse (23 of 332 random
+    pushes on the shared mocap went down at C and were given a step or a sway); a body lying on the
+    floor was given a sway and stood up."""
+    if not any(slug.startswith("fall_") for slug in library.class_ranges):
+        return None
     body = Body.of(ragdoll.skeleton, ragdoll.roles)
-    if not collapsing(body, bc.com[-1], bc.com_velocity[-1], bc.floor):
+    feet = [k for k, part in enumerate(ragdoll.bodies) if part.name.startswith("ankle")]
+    on_floor = np.delete(bc.contacts[-1], feet).any()
+    if not (on_floor or collapsing(body, bc.com[-1], bc.com_velocity[-1], bc.floor)):
         return None
     reader = FeatureReader(ragdoll)
     return judge(body, reader.simulated(motion, bc), (bc.frames[-1] - impact.frame) / motion.fps).reaction

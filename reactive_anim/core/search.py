@@ -2,8 +2,9 @@
 
 The paper searches the reaction class the network predicts for the library window closest to the
 simulated one by Eq. 1 (window.py) and accepts it under a threshold. `search` does that for any set
-of classes; `search_with_fallback` widens the search class by class, then to the whole library, when
-the best cost is over the threshold, and says which scope produced the match. The search is exact:
+of classes; `search_with_fallback` tries the given classes in order when the best cost is over the
+threshold, keeps the first class's best when none is within it (the whole library only when the
+library has none of them), and says which scope produced the match. The search is exact:
 search_index.py rules windows out only by true bounds of Eq. 1 (search_bounds.py) and decides by
 the exact cost, so the window returned is the one a scan of every window would return (ties to the
 lowest class, clip, frame).
