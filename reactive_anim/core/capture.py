@@ -135,6 +135,12 @@ def _disc_exit(start: np.ndarray, unit: np.ndarray, centre: np.ndarray, radius: 
     return -half + math.sqrt(discriminant) if discriminant >= 0.0 else -math.inf
 
 
+def foot_bodies(ragdoll: Ragdoll) -> list[int]:
+    """The ragdoll bodies (indices into ragdoll.bodies) that are feet: what may touch the floor
+    without the body being down."""
+    return [k for k, body in enumerate(ragdoll.bodies) if body.name.startswith("ankle")]
+
+
 class SoleGeometry:
     """Where a ragdoll's soles are, from its geometry at given joint positions (qpos). Holds its own
     MjData: one per thread."""
@@ -145,7 +151,7 @@ class SoleGeometry:
         self.data = mujoco.MjData(model)
         self.geoms = np.flatnonzero(np.isin(model.geom_bodyid, ragdoll.body_ids))
         self.body_index = {int(b): k for k, b in enumerate(ragdoll.body_ids)}
-        feet = [k for k, b in enumerate(ragdoll.bodies) if b.name.startswith("ankle")]
+        feet = foot_bodies(ragdoll)
         self.geom_body = np.array([self.body_index[int(model.geom_bodyid[g])] for g in self.geoms])
         self.is_foot = np.isin(self.geom_body, feet)
         self.radius = float(np.mean(model.geom_size[self.geoms[self.is_foot], 0]))

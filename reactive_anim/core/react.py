@@ -37,6 +37,7 @@ import numpy as np
 
 from .balance import RootAssist
 from .blend import blend, fade_weights, place
+from .capture import foot_bodies
 from .casting import Casting
 from .classes import CLASS_SLUGS
 from .errors import Cancelled, ImpactError, LibraryError, SkeletonError
@@ -407,8 +408,7 @@ def _going_down(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact,
     if not any(slug.startswith("fall_") for slug in library.class_ranges):
         return None
     body = Body.of(ragdoll.skeleton, ragdoll.roles)
-    feet = [k for k, part in enumerate(ragdoll.bodies) if part.name.startswith("ankle")]
-    on_floor = np.delete(bc.contacts[-1], feet).any()
+    on_floor = np.delete(bc.contacts[-1], foot_bodies(ragdoll)).any()
     if not (on_floor or collapsing(body, bc.com[-1], bc.com_velocity[-1], bc.floor)):
         return None
     reader = FeatureReader(ragdoll)

@@ -711,7 +711,7 @@ class _Plan:
 
     targets: (K, nq) mocap qpos per target frame. The simulation starts at `start_offset` frames and
     samples at `sample_offsets` (frames, >= start_offset); step counts depend only on these numbers.
-    impulse: (MuJoCo body id, force) applied for the first step, or None.
+    hit: (MuJoCo body id, the impact) whose impulse the first step applies, or None.
     clock: the start's time in seconds on the caller's clock, for error messages.
     follow: (S, J, 4) the target's local rotations at the samples, for the joints the output takes
       from the mocap (Ragdoll.leaf_joints).
@@ -723,7 +723,7 @@ class _Plan:
     sample_offsets: np.ndarray
     start_offset: float
     gains: ServoGains
-    impulse: tuple[int, np.ndarray] | None
+    hit: tuple[int, Impact] | None
     clock: float
     follow: np.ndarray
     assist: RootAssist | None = None
@@ -743,6 +743,8 @@ def _run(ws: Workspace, start: SimState, plan: _Plan) -> SimResult:
     if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
         raise SimulationError("the start state holds NaN or infinite values")
     mujoco.mj_forward(model, data)
+    if plan.hit is not None:
+        _check_hit_speed(model, data, *plan.hit)
     with _CapturedWarnings() as messages:
         return _step_and_sample(ws, start, plan, _Watch(ws, data, plan.clock, messages))
 
@@ -794,7 +796,7 @@ def _step_and_sample(ws: Workspace, start: SimState, plan: _Plan, watch: _Watch)
             if helper is not None and step % ASSIST_STEPS == 0:
                 helper.apply(data, plan.start_offset + step / frame_steps, plan.fps, start.floor)
             if step == 0:
-                _first_step(model, data, plan.impulse, watch)
+                _first_step(model, data, plan.hit, watch)
             else:
                 mujoco.mj_step(model, data)
             step += 1
@@ -825,14 +827,13 @@ def _floor_contacts(ws: Workspace, data: mujoco.MjData) -> np.ndarray:
     return touching
 
 
-def _first_step(
-    model: mujoco.MjModel, data: mujoco.MjData, impulse: tuple[int, np.ndarray] | None, watch: _Watch
-) -> None:
+def _first_step(model: mujoco.MjModel, data: mujoco.MjData, hit: tuple[int, Impact] | None, watch: _Watch) -> None:
     """The impulse: force J / dt for this one step, at the hit body's centre of mass; the energy
     after it is the reference, since from here on nothing adds energy but the servos."""
-    if impulse is not None:
-        body_id, force = impulse
+    if hit is not None:
+        body_id, impact = hit
         point = data.xipos[body_id].copy()
+        force = np.asarray(impact.impulse) / TIMESTEP
         mujoco.mj_applyFT(model, data, force, np.zeros(3), point, body_id, data.qfrc_applied)
     mujoco.mj_step(model, data)
     data.qfrc_applied[:] = 0.0
@@ -886,28 +887,22 @@ def simulate_impact(
         sample_offsets=np.arange(int(np.ceil(b)), c + 1, dtype=float) - table.first,
         start_offset=b - table.first,
         gains=gains,
-        impulse=(body.body_id, np.asarray(impact.impulse) / TIMESTEP),
+        hit=(body.body_id, impact),
         clock=b / motion.fps,
         follow=_local_rotations(motion, np.arange(int(np.ceil(b)), c + 1)),
     )
     with _workspace(ragdoll, workspace) as ws:
         start = _state_from_table(ws, motion, b, table)
-        _check_hit_speed(ws, start, impact, body.body_id)
         result = _run(ws, start, plan)
     result.frames = result.frames + table.first
     return result
 
 
-def _check_hit_speed(ws: Workspace, start: SimState, impact: Impact, body_id: int) -> None:
+def _check_hit_speed(model: mujoco.MjModel, data: mujoco.MjData, body_id: int, impact: Impact) -> None:
     """Refuse an impact that would start the hit body faster than MAX_HIT_SPEED, naming the most
     this bone takes here. The speed is the impulse through the inverse mass matrix at the start
-    pose (the whole ragdoll answers, so a hand weighs 1-2 kg, the head 11-18)."""
-    model = ws.model
-    _place_bodies(ws, start.held)
-    data = _fresh(ws.kin_data)
-    data.qpos[:] = start.qpos
-    for step in (mujoco.mj_kinematics, mujoco.mj_comPos, mujoco.mj_crb, mujoco.mj_factorM):
-        step(model, data)  # the factored mass matrix at the start pose (no contacts: no warnings)
+    pose (the whole ragdoll answers, so a hand weighs 1-2 kg, the head 11-18); `data` holds the start
+    state after mj_forward, which factored that matrix."""
     jacobian = np.zeros((3, model.nv))
     mujoco.mj_jacBodyCom(model, data, jacobian, None, body_id)
     response = np.zeros((1, model.nv))
@@ -955,7 +950,7 @@ def track(
         sample_offsets=np.arange(0, n + 1, dtype=float),
         start_offset=0.0,
         gains=gains,
-        impulse=None,
+        hit=None,
         clock=target_start / target.fps,
         follow=_local_rotations(target, np.arange(target_start, target_start + n + 1)),
         assist=assist,
