@@ -22,6 +22,10 @@ from .roles import SIDES, assign_roles
 from .skeleton import Motion, Skeleton
 from .window import Query, query_from_motion
 
+# m/s: faster than a body's joints move in a take (the shared takes peak at 13); the shared files that
+# open on a calibration pose leave it at 77-172
+CALIBRATION_JUMP = 20.0
+
 
 @dataclass
 class Casting:
@@ -98,10 +102,21 @@ class Casting:
 
 def _sole(motion: Motion, roles: dict[str, str]) -> float:
     """The lowest any foot of the motion gets (toes, end sites): where its floor is for its feet.
-    A toe joint may sit centimetres over the real sole, and a file's floor anywhere."""
+    A toe joint may sit centimetres over the real sole, and a file's floor anywhere. A first frame
+    the take leaves faster than CALIBRATION_JUMP is a calibration pose, not the take, and is left
+    out: CMU 139_16 and 140_01 open on one with the feet 0.8 m under their floor, and every cast
+    clip was held that far down."""
     pos, rot = motion.global_transforms()
     sk = motion.skeleton
-    return float(min(lowest_foot_point(sk, sk.index(roles[f"ankle_{s}"]), pos, rot).min() for s in SIDES))
+    lowest = np.minimum(*(lowest_foot_point(sk, sk.index(roles[f"ankle_{s}"]), pos, rot) for s in SIDES))
+    return float(lowest[_take_start(pos, motion.fps) :].min())
+
+
+def _take_start(pos: np.ndarray, fps: float) -> int:
+    """1 when some joint leaves frame 0 (pos (T, J, 3)) faster than CALIBRATION_JUMP, else 0."""
+    if len(pos) < 2:
+        return 0
+    return int(np.linalg.norm(pos[1] - pos[0], axis=-1).max() * fps > CALIBRATION_JUMP)
 
 
 def same_skeleton(a: Skeleton, b: Skeleton) -> bool:

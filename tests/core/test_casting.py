@@ -16,6 +16,7 @@ from reactive_anim.core.library import load_library
 from reactive_anim.core.react import ReactionSettings, character_ragdoll, react
 from reactive_anim.core.roles import assign_roles
 from reactive_anim.core.search import search
+from reactive_anim.core.skeleton import Motion
 from tests.support.library_clips import write_toml
 from tests.support.mocap import REPO, require_mocap
 from tests.support.poses import leg_joints
@@ -146,3 +147,36 @@ def test_a_clips_role_overrides_reach_the_bake(tmp_path):
     renamed, roles = _renamed()
     casting = Casting.between(renamed, roles, library)
     assert casting._roles(casting.reference.skeleton)["chest"] == "spine.001"
+
+
+def _opening_on(drop: float) -> Motion:
+    """The walk after a first frame of its own opening pose `drop` metres lower (a calibration pose
+    under the floor, as CMU 139_16 and 140_01 open with)."""
+    first = WALK.slice(0, 1)
+    first = replace(first, root_pos=first.root_pos - np.array([0.0, 0.0, drop]))
+    return first.concat(WALK)
+
+
+def test_a_calibration_pose_on_frame_0_is_not_the_characters_floor(library):
+    """A first frame left at 48 m/s (0.8 m in a frame) is no part of the take: the floor the cast
+    clips stand on is the walk's. One left at a walking pace still counts (5 cm lower: 3 m/s)."""
+    walk = Casting.between(WALK, assign_roles(WALK.skeleton), library).sole
+    calibrated = Casting.between(_opening_on(0.8), assign_roles(WALK.skeleton), library).sole
+    stepped = Casting.between(_opening_on(0.05), assign_roles(WALK.skeleton), library).sole
+    assert calibrated == walk
+    assert stepped < walk - 0.04
+
+
+def test_a_take_opening_on_a_calibration_pose_keeps_its_reactions_on_its_floor(library, classifier):
+    """CMU 139_16 opens on a pose with the feet 0.83 m under the floor of the rest of the take; the
+    clip a push there picked was held that far down for the whole reaction."""
+    take = bvh.read_bvh(require_mocap("cmu/139_16.bvh"))
+    roles = assign_roles(take.skeleton)
+    reaction = react(take, Impact(560, roles["chest"], (1.0, 0.0, 0.0), 100.0), library, classifier)
+    frames = slice(reaction.frame_c, reaction.end_frame + 1)
+    pos, rot = reaction.motion.global_transforms()
+    lowest = min(
+        retarget.lowest_foot_point(take.skeleton, take.skeleton.index(roles[f"ankle_{s}"]), pos, rot)[frames].min()
+        for s in "lr"
+    )
+    assert lowest > -0.03, lowest
