@@ -17,15 +17,20 @@ a millimetre's difference in the motion moves the result by little. Where a leg 
 the offset is capped (MAX_OFFSET) and the foot slides the rest. From the impact to the end of
 the reaction, a foot whose lowest point is under the character's floor (the lowest its feet get
 in its own motion) is also lifted onto it: the ragdoll's soles and the skeleton's toes do not
-quite agree, and toes went up to 4 cm under the floor in transitions.
+quite agree, and toes went up to 4 cm under the floor in transitions. A knee under the floor
+there is turned onto it about the line from the hip to the ankle, so hips and feet stay: a fade
+between two poses whose knees both clear the floor can pass one under it (in the robustness
+sweep, tools/bench.py sweep, 77 of 431 reactions put a knee more than 5 cm under, up to 31 cm;
+most were Bandai Namco bodies rising from the floor faded into a clip going down onto its knees).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from . import quat
 from .retarget import foot_points, joint_path, leg_length, local_rotations, two_bone_ik
-from .skeleton import Motion
+from .skeleton import Motion, Skeleton
 
 CONTACT_HEIGHT = 0.03  # m over the floor: a foot point lower than this stands on it, fully from ...
 CONTACT_BAND = 0.02  # ... this much lower (toe clearance in a walk's swing is about 1.5 cm)
@@ -37,6 +42,7 @@ CATCH_UP_FINISH = 0.05  # m/s: ... and by this much more, so it ends (the last s
 SOFT_REACH = 0.95  # of a leg's length: a held foot asking more of it reaches less, smoothly (_eased_reach)
 MAX_OFFSET = 0.15  # leg lengths a foot is held away from where the motion puts it; beyond, it slides
 SETTLE = 1.0  # s after the reaction first looked at for the offsets to be let go (a walker's feet lift in it)
+KNEE_OUTWARD = 0.25  # rad: a knee is turned onto the floor outward unless that is this much longer a turn
 SIDES = ("l", "r")
 
 
@@ -89,25 +95,69 @@ def _hold(
     leg = leg_length(skeleton, roles)
     moved: list[tuple[list[int], np.ndarray]] = []
     still_held = False
+    reaction = np.zeros(len(pos), dtype=bool)  # the frames lifted out of the floor: first..last - 1
+    reaction[1 : last - first + 1] = True  # (after the reaction the motion is its own)
     for side in SIDES:
         ankle = joint[f"ankle_{side}"]
         down, slide = _sliding(points[side], floor, motion.fps)
         offset = _offsets(down, np.where(fading[:, None], slide, 0.0), motion.fps, MAX_OFFSET * leg)
-        lift = np.maximum(floor - points[side][..., 2].min(axis=1), 0.0)  # a foot through the floor
-        lift[0] = 0.0
-        lift[last - first + 1 :] = 0.0  # after the reaction the motion is its own
+        lift = np.where(reaction, np.maximum(floor - points[side][..., 2].min(axis=1), 0.0), 0.0)
         moves = (np.abs(offset).max(axis=1) > 1e-6) | (lift > 1e-6)
         still_held = still_held or bool(np.abs(offset[-1]).max() > 1e-6)
-        if not moves.any():
-            continue
-        goal = pos[:, ankle].copy()
-        goal[:, :2] += offset
-        goal[:, 2] += lift
         chain = (joint[f"hip_{side}"], joint[f"knee_{side}"], ankle)
-        goal = _eased_reach(goal, *(pos[:, j] for j in chain))
-        two_bone_ik(skeleton, pos, glob, chain, goal, moves.astype(float), left, forward)
-        moved.append((joint_path(skeleton, chain[0], ankle), moves))
+        if moves.any():
+            goal = pos[:, ankle].copy()
+            goal[:, :2] += offset
+            goal[:, 2] += lift
+            goal = _eased_reach(goal, *(pos[:, j] for j in chain))
+            two_bone_ik(skeleton, pos, glob, chain, goal, moves.astype(float), left, forward)
+        outward = left if side == "l" else -left
+        turned = moves | _clear_knee(skeleton, pos, glob, chain, outward, reaction, floor)
+        if turned.any():
+            moved.append((joint_path(skeleton, chain[0], ankle), turned))
     return (glob, still_held, moved) if moved else None
+
+
+def _clear_knee(
+    skeleton: Skeleton,
+    pos: np.ndarray,
+    glob: np.ndarray,
+    chain: tuple[int, int, int],
+    outward: np.ndarray,
+    rows: np.ndarray,
+    floor: float,
+) -> np.ndarray:
+    """Where a knee is under the floor on `rows`, the leg's bend turned about the hip-ankle line
+    just enough to bring it onto the floor (in place on pos and glob; the hip, the ankle and the
+    foot stay); returns the rows turned. A fade between two poses whose knees both clear the floor
+    can pass one under it: a Bandai Namco body rising from the floor faded into a clip going down
+    onto its knees put a knee 13 cm under. Where no turn clears it, the knee is turned highest."""
+    hip, knee, ankle = chain
+    h, k, a = pos[:, hip], pos[:, knee], pos[:, ankle]
+    axis = (a - h) / np.maximum(np.linalg.norm(a - h, axis=-1, keepdims=True), 1e-9)
+    centre = h + axis * np.sum((k - h) * axis, axis=-1, keepdims=True)
+    radius = k - centre
+    # Turned by t about the axis, the knee is at centre + radius cos t + (axis x radius) sin t: its
+    # height is centre_z + size cos(t - phase), on the floor at t = phase -/+ room.
+    across = np.cross(axis, radius)
+    size = np.hypot(radius[:, 2], across[:, 2])
+    phase = np.arctan2(across[:, 2], radius[:, 2])
+    room = np.arccos(np.clip((floor - centre[:, 2]) / np.maximum(size, 1e-9), -1.0, 1.0))
+    turns = np.angle(np.exp(1j * np.stack([phase - room, phase + room])))
+    # The smaller turn, so the correction grows from nothing as the knee goes under; but outward
+    # (away from the other leg) unless that is KNEE_OUTWARD longer: at the bottom of its circle
+    # a knee has two turns of about the same size, and round-off must not pick one or the other.
+    out = np.sum(radius * outward, axis=-1) * (np.cos(turns) - 1.0) + np.sum(across * outward, axis=-1) * np.sin(turns)
+    cost = np.abs(turns) - KNEE_OUTWARD * (out > 0.0)
+    turn = np.where(cost[0] <= cost[1], turns[0], turns[1])
+    under = np.flatnonzero(rows & (k[:, 2] < floor))
+    rotation = quat.from_axis_angle(axis[under], turn[under])
+    for j in joint_path(skeleton, hip, ankle)[1:]:  # the shin's and the thigh's joints; the foot keeps its turn
+        glob[under, j] = quat.mul(rotation, glob[under, j])
+    pos[under, knee] = h[under] + quat.rotate(rotation, k[under] - h[under])
+    turned = np.zeros(len(pos), dtype=bool)
+    turned[under] = True
+    return turned
 
 
 def _eased_reach(goal: np.ndarray, hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray) -> np.ndarray:
