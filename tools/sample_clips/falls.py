@@ -249,16 +249,19 @@ def _sit(direction: float, strength: float, hip: float, knee: float, trunk: floa
 
 def _side_knees(direction: float, strength: float, knee: float) -> Fall:
     """A push at the hips from the side: the knees give (knees `knee` degrees over ankles bent up
-    50, hips straight) so they travel forward and down; on the knees the body leans back, is carried
-    over sideways by the push onto the hip and hand, and ends lying face down."""
+    50, hips straight) so they travel forward and down; on the knees, shins on the floor, the body is
+    carried over sideways by the push onto the hip and the hand thrown out to that side, the knees
+    still bent, and ends lying face down. (Keyed to sit back over the heels, knees 130 degrees,
+    before lying down, the body knelt up instead as the legs straightened and swung the feet 1.2 m
+    into the air.)"""
     return Fall(start="idle", frame=0, bone="pelvis", direction=direction, strength=strength, keys=(
         (0.0, pose(hip_flex=0.0, knee=20.0, ankle=-15.0, arm_abd=20.0, elbow=20.0)),
         (0.4, pose(hip_flex=0.0, knee=knee, ankle=-50.0, spine_pitch=0.0, arm_abd=20.0, arm_flex=30.0, elbow=70.0)),
         (0.75, pose(hip_flex=-15.0, knee=100.0, ankle=35.0, spine_pitch=-15.0, arm_abd=30.0, arm_flex=30.0,
                     elbow=70.0)),
-        (1.5, pose(hip_flex=40.0, knee=130.0, ankle=50.0, spine_pitch=20.0, spine_roll=-20.0, arm_abd=30.0,
-                   elbow=30.0)),
-        (2.3, pose(LYING_FACE_DOWN, wrist=0.0)),
+        (1.3, pose(hip_flex=20.0, knee=95.0, ankle=35.0, spine_roll=-30.0, arm_abd=60.0, arm_flex=30.0, elbow=30.0)),
+        (2.2, pose(LYING_FACE_DOWN, wrist=0.0, knee=60.0, hip_flex=10.0)),
+        (3.0, pose(LYING_FACE_DOWN, wrist=0.0)),
     ), next="getup_face_down.bvh", duration=8.5)
 
 
