@@ -7,7 +7,7 @@
 - Reactions on the sample walk slide their feet less than half as far as without the hold, and
   no foot goes through the floor (without the hold, toes went up to 4 cm under).
 - A knee under the floor is turned onto it about the hip-ankle line: the hips, ankles and feet
-  stay where they were.
+  stay where they were. A hand under it is swung up onto it about the shoulder, keeping its turn.
 """
 
 from __future__ import annotations
@@ -206,3 +206,28 @@ def test_a_knee_under_the_floor_is_turned_onto_it_with_hips_and_feet_in_place():
     ankles = [index(ROLES[f"ankle_{s}"]) for s in "lr"]
     assert np.allclose(quat.angle_between(new_glob[rows][:, ankles], glob[rows][:, ankles]), 0.0, atol=1e-6)
     assert np.array_equal(held.local_rot[:START], kneeling.local_rot[:START])
+
+
+def test_a_hand_under_the_floor_is_swung_up_onto_it_keeping_its_turn():
+    """The idle sunk 0.85 m over the drag's frames: the hanging wrists 1-2 cm under the floor."""
+    sunk = replace(IDLE, root_pos=IDLE.root_pos - np.array([0.0, 0.0, 0.85]) * _drag_rows()[:, None])
+    floor = sole(IDLE)
+    index = IDLE.skeleton.index
+    wrists = [index(ROLES[f"wrist_{s}"]) for s in "lr"]
+    shoulders = [index(ROLES[f"shoulder_{s}"]) for s in "lr"]
+    pos, glob = sunk.global_transforms()
+    rows = slice(START, START + FRAMES)
+    assert pos[rows, wrists, 2].max() < floor  # the pose the test needs
+    held = hold_feet(sunk, ROLES, (START, START + FRAMES), [], floor)
+    new_pos, new_glob = held.global_transforms()
+    assert new_pos[rows, wrists, 2].min() > floor - 1e-6
+    assert np.allclose(new_pos[rows][:, shoulders], pos[rows][:, shoulders], atol=1e-6)
+    assert np.allclose(quat.angle_between(new_glob[rows][:, wrists], glob[rows][:, wrists]), 0.0, atol=1e-6)
+    assert np.array_equal(held.local_rot[:START], sunk.local_rot[:START])
+
+
+def _drag_rows() -> np.ndarray:
+    """(T,) 1 on the drag's frames, else 0."""
+    rows = np.zeros(IDLE.num_frames)
+    rows[START : START + FRAMES] = 1.0
+    return rows

@@ -1,4 +1,4 @@
-"""Where a character faces in a motion, for aiming pushes in tests and benchmarks; which joints are its legs."""
+"""Where a character faces in a motion, for aiming pushes in tests and benchmarks; which joints are its limbs."""
 
 from __future__ import annotations
 
@@ -25,6 +25,16 @@ def ground_axes(motion: Motion, frame: float, roles: dict[str, str] | None = Non
 
 def leg_joints(skeleton: Skeleton) -> list[int]:
     """Every joint from the hips down (what the feet hold, core/footing.py, may turn)."""
+    return _below(skeleton, "hip")
+
+
+def limb_joints(skeleton: Skeleton) -> list[int]:
+    """Every joint from the hips or the shoulders down (what core/footing.py may turn: the feet held,
+    and legs and arms brought out of the floor)."""
+    return sorted(_below(skeleton, "hip") + _below(skeleton, "shoulder"))
+
+
+def _below(skeleton: Skeleton, role: str) -> list[int]:
     roles = skeleton.roles or assign_roles(skeleton)
-    hips = {skeleton.index(roles[f"hip_{s}"]) for s in "lr"}
-    return [j for j in range(skeleton.num_joints) if hips & set(joint_path(skeleton, 0, j))]
+    tops = {skeleton.index(roles[f"{role}_{s}"]) for s in "lr"}
+    return [j for j in range(skeleton.num_joints) if tops & set(joint_path(skeleton, 0, j))]
