@@ -93,7 +93,8 @@ _WARNING_IDS = np.array([int(getattr(mujoco.mjtWarning, name)) for name in _WARN
 class HeldPose:
     """The mocap frame whose merged joints (and joints above the pelvis) stay as they are.
 
-    local_rot (J, 4), offsets (J, 3), root_pos (3,): that frame of the input motion.
+    local_rot (J, 4), offsets (J, 3), root_pos (3,): that frame of the input motion; qpos (nq,):
+    the ragdoll's joint positions for it (mocap_qpos).
     """
 
     local_rot: np.ndarray
@@ -101,6 +102,7 @@ class HeldPose:
     root_pos: np.ndarray
     global_pos: np.ndarray
     global_rot: np.ndarray
+    qpos: np.ndarray
 
 
 @dataclass
@@ -274,6 +276,7 @@ class _MocapPoses:
             root_pos=self.root_pos[k].copy(),
             global_pos=self.global_pos[k].copy(),
             global_rot=self.global_rot[k].copy(),
+            qpos=self.qpos[k].copy(),
         )
 
 
@@ -643,29 +646,51 @@ def _samples(
     return xquat[:, ids], pelvis, com, com_vel
 
 
+def _body_rotations(ws: Workspace, qpos: np.ndarray) -> np.ndarray:
+    """(B, 4) the ragdoll bodies' rotations in the pose qpos (on the workspace's placed bodies)."""
+    data = _fresh(ws.kin_data)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(ws.model, data)
+    return data.xquat[ws.ragdoll.body_ids].copy()
+
+
 def _to_motion(
-    ragdoll: Ragdoll, held: HeldPose, follow: np.ndarray, body_rot: np.ndarray, pelvis_pos: np.ndarray, *, fps: float
+    ragdoll: Ragdoll,
+    held: HeldPose,
+    follow: np.ndarray,
+    body_rot: np.ndarray,
+    pelvis_pos: np.ndarray,
+    held_body_rot: np.ndarray,
+    *,
+    fps: float,
 ) -> Motion:
     """Full-skeleton Motion from simulated body rotations (N, B, 4) and pelvis positions (N, 3).
 
     Joints between bodies (clavicles, helper bones) keep the held frame, as in the model; joints with
     no body below (toes, fingers, head) take their rotation from `follow` (N, J, 4), the mocap the
-    servos track; a spine body's bend is shared by the skeleton's joints it spans (_share_bends)."""
+    servos track; a spine body's bend is shared by the skeleton's joints it spans (_share_bends).
+    What a body's joints cannot hold of the held frame (a single-hinge elbow or knee drops the
+    forearm's twist and carrying angle: up to 116 degrees on a Bandai Namco punch, the hand 37 cm
+    off) is kept as it is there, on top of the simulated rotation: `held_body_rot` (B, 4), the
+    bodies of the held frame's qpos, rebuilt the same way, says how much, so the output starts on the
+    mocap's pose instead of jumping away from it at the impact."""
     skeleton = ragdoll.skeleton
     n = len(body_rot)
     hpos, hrot = held.global_pos, held.global_rot
     local = np.broadcast_to(held.local_rot, (n,) + held.local_rot.shape).copy()
     local[:, ragdoll.leaf_joints] = follow[:, ragdoll.leaf_joints]
     joints = ragdoll.body_joints
-    glob = quat.mul(body_rot, ragdoll.neutral_global_rot[joints])  # (N, B, 4)
+    # The held frame's bodies as one more row, last.
+    glob = quat.mul(np.concatenate([body_rot, held_body_rot[None]]), ragdoll.neutral_global_rot[joints])
+    body_local = np.empty_like(glob)  # (N + 1, B, 4)
     root = ragdoll.root
     parent = skeleton.parents[root.joint]
     if parent < 0:
-        local[:, root.joint] = glob[:, 0]
+        body_local[:, 0] = glob[:, 0]
         root_pos = pelvis_pos.copy()
     else:
         # Joints above the pelvis (a ground root bone) hold; the root moves so the pelvis lands right.
-        local[:, root.joint] = quat.mul(quat.conj(hrot[parent]), glob[:, 0])
+        body_local[:, 0] = quat.mul(quat.conj(hrot[parent]), glob[:, 0])
         root_pos = held.root_pos + (pelvis_pos - hpos[root.joint])
     # Every other body at once: its parent joint's rotation is the parent body's, carried through
     # the held merged bones between them.
@@ -674,7 +699,9 @@ def _to_motion(
     parent_joint = skeleton.parents[joints[1:]]
     carry = quat.mul(quat.conj(hrot[parent_body_joint]), hrot[parent_joint])
     parent_rot = quat.mul(glob[:, body_parent], carry)
-    local[:, joints[1:]] = quat.mul(quat.conj(parent_rot), glob[:, 1:])
+    body_local[:, 1:] = quat.mul(quat.conj(parent_rot), glob[:, 1:])
+    kept = quat.mul(quat.conj(body_local[-1]), held.local_rot[joints])
+    local[:, joints] = quat.mul(body_local[:-1], kept)
     _share_bends(ragdoll, local, held.local_rot)
     local = quat.make_continuous(quat.normalize(local))
     local_pos = np.broadcast_to(held.offsets, (n,) + held.offsets.shape).copy()
@@ -805,7 +832,8 @@ def _step_and_sample(ws: Workspace, start: SimState, plan: _Plan, watch: _Watch)
         qvel_arr[n] = data.qvel
         contacts[n] = _floor_contacts(ws, data)
     rots, pelvis, com, com_vel = _samples(ws, qpos_arr, qvel_arr)
-    motion = _to_motion(ws.ragdoll, start.held, plan.follow, rots, pelvis, fps=plan.fps)
+    held_rot = _body_rotations(ws, start.held.qpos)
+    motion = _to_motion(ws.ragdoll, start.held, plan.follow, rots, pelvis, held_rot, fps=plan.fps)
     end = SimState(qpos=qpos_arr[-1].copy(), qvel=qvel_arr[-1].copy(), held=start.held, floor=start.floor)
     times = (np.asarray(plan.sample_offsets, dtype=float) - plan.start_offset) / plan.fps
     first = {body.name: float(times[np.argmax(contacts[:, k])])

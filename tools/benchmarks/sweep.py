@@ -8,7 +8,8 @@ An impact refused as too strong for its bone (ImpactError: it would start the bo
 simulate.MAX_HIT_SPEED) is halved and the bake tried again, up to RETRIES halvings; any other error
 is counted and printed. The time is that of the bake that went through. Speeds are the fastest joint
 per frame, leaving out the root and the frames from one before each impact to three after it (the
-hit itself moves a hand at up to 50 m/s).
+hit itself moves a hand at up to 50 m/s). Under the floor: the lowest joint (root left out) from
+the first impact on, under the character's own floor (its lowest foot point, Casting.sole).
 Seeded: the same pushes every run.
 """
 
@@ -20,6 +21,7 @@ from collections import Counter
 import numpy as np
 
 from reactive_anim.core import bvh
+from reactive_anim.core.casting import Casting
 from reactive_anim.core.classifier import load_classifier
 from reactive_anim.core.errors import ImpactError, ReactiveAnimError
 from reactive_anim.core.impact import Impact
@@ -80,6 +82,13 @@ def fastest_away_from_hits(baked: Baked) -> float:
     return float(speed.max())
 
 
+def deepest_under_floor(baked: Baked, floor: float) -> float:
+    """How far (m) the lowest joint, root left out, gets under the character's floor (its lowest
+    foot point in its own motion, Casting.sole) from the first impact on."""
+    first = int(np.ceil(min(reaction.frame_b for reaction in baked.reactions)))
+    return float(floor - baked.motion.global_positions()[first:, 1:, 2].min())
+
+
 def bench_sweep() -> None:
     """The sweep's figures (see the module docstring)."""
     files = mocap_files()
@@ -88,10 +97,11 @@ def bench_sweep() -> None:
         return
     library, classifier = load_library(REPO / "sample_clips" / "library.toml"), load_classifier()
     rng = np.random.default_rng(SEED)
-    errors, fastest, halved, impacts, seconds = Counter(), [], 0, 0, 0.0
+    errors, fastest, under, halved, impacts, seconds = Counter(), [], [], 0, 0, 0.0
     for path in files:
         motion = bvh.read_bvh(path)
-        pushes = random_impacts(motion, list(character_ragdoll(motion).roles.values()), rng)
+        roles = character_ragdoll(motion).roles
+        pushes = random_impacts(motion, list(roles.values()), rng)
         try:
             baked, refused, took = bake_halving(motion, pushes, library, classifier)
         except ReactiveAnimError as error:
@@ -102,10 +112,13 @@ def bench_sweep() -> None:
         impacts += len(baked.reactions)
         halved += refused
         fastest.append(fastest_away_from_hits(baked))
+        under.append(deepest_under_floor(baked, Casting.between(motion, roles, library).sole))
     context = {"files": len(files), "pushes_per_file": PUSHES, "seed": SEED}
     report(GROUP, "impacts baked", impacts, "impacts", **context)
     report(GROUP, "bakes failed", sum(errors.values()), "bakes", by_error=dict(errors), **context)
     report(GROUP, "impacts halved as too strong for their bone", halved, "impacts", **context)
     report(GROUP, "fastest joint away from the hits, median over files", float(np.median(fastest)), "m/s",
            max=round(max(fastest), 1), **context)  # fmt: skip
+    report(GROUP, "bakes with a joint over 5 cm under the floor", sum(d > 0.05 for d in under), "bakes",
+           deepest_cm=round(max(under) * 100, 1), **context)  # fmt: skip
     report(GROUP, "bake time per impact", seconds / max(impacts, 1) * 1e3, "ms", **context)
