@@ -37,7 +37,12 @@ class SimulationError(ReactiveAnimError):
 
 class ImpactError(ReactiveAnimError):
     """An impact that cannot be applied: outside the motion, on a bone the skeleton lacks, without
-    a direction or with a bad strength; the message names the impact."""
+    a direction or with a bad strength; the message names the impact. `impact`: the Impact refused,
+    where the raiser has it (too strong for its bone), for a caller that retries it weaker."""
+
+    def __init__(self, message: str, impact: object | None = None) -> None:
+        self.impact = impact
+        super().__init__(message)
 
 
 class Cancelled(ReactiveAnimError):  # noqa: N818  (a stop the caller asked for, not a failure)

@@ -937,11 +937,12 @@ def _check_hit_speed(model: mujoco.MjModel, data: mujoco.MjData, body_id: int, i
     mujoco.mj_solveM(model, data, response, (jacobian.T @ np.asarray(impact.impulse))[None])
     speed = float(np.linalg.norm(jacobian @ response[0]))
     if speed > MAX_HIT_SPEED:
-        most = impact.strength * MAX_HIT_SPEED / speed
+        most = math.floor(impact.strength * MAX_HIT_SPEED / speed)  # rounded down: the figure named passes
         raise ImpactError(
             f"impact on '{impact.bone}' at frame {impact.frame:g}: {impact.strength:g} N·s would start that "
-            f"body part at {speed:.0f} m/s; this bone takes at most {most:.0f} N·s here ({MAX_HIT_SPEED:g} m/s, "
-            f"faster than a batted ball). Hit a heavier bone (chest, pelvis) for a harder push."
+            f"body part at {speed:.1f} m/s; this bone takes at most {most:d} N·s here ({MAX_HIT_SPEED:g} m/s, "
+            f"faster than a batted ball). Hit a heavier bone (chest, pelvis) for a harder push.",
+            impact,
         )
 
 

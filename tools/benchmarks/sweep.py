@@ -63,11 +63,10 @@ def bake_halving(motion: Motion, impacts: list[Impact], library, classifier) -> 
         try:
             return bake_reactions(motion, impacts, library, classifier), halved, time.perf_counter() - start
         except ImpactError as error:
-            if halved == RETRIES:
+            if halved == RETRIES or error.impact not in impacts:
                 raise
-            refused = next(i for i, imp in enumerate(impacts) if f"'{imp.bone}' at frame {imp.frame:g}" in str(error))
-            imp = impacts[refused]
-            impacts[refused] = Impact(imp.frame, imp.bone, imp.direction, imp.strength / 2)
+            k = impacts.index(error.impact)
+            impacts[k] = Impact(impacts[k].frame, impacts[k].bone, impacts[k].direction, impacts[k].strength / 2)
             halved += 1
 
 
