@@ -1,4 +1,4 @@
-"""Planted feet stay planted across a reaction's seams, and limbs stay out of the floor.
+"""Planted feet stay planted across a reaction's seams, and feet and hands stay out of the floor.
 
 A reaction is stitched from sources whose feet stand in different places: the ragdoll's simulated
 steps, the clip faded in over C..F (blend.py), the original motion faded back in on resume. Where
@@ -17,21 +17,18 @@ a millimetre's difference in the motion moves the result by little. Where a leg 
 the offset is capped (MAX_OFFSET) and the foot slides the rest. From the impact to the end of
 the reaction, a foot whose lowest point is under the character's floor (the lowest its feet get
 in its own motion) is also lifted onto it: the ragdoll's soles and the skeleton's toes do not
-quite agree, and toes went up to 4 cm under the floor in transitions. A knee under the floor
-there is turned onto it about the line from the hip to the ankle, so hips and feet stay; a hand
-under it is swung up onto it about the shoulder, and then an elbow turned out of it like a knee.
-A fade between two poses whose limbs both clear the floor can pass one under it, and a clip cast
-onto other proportions puts hands a few cm under: in the robustness sweep (tools/bench.py sweep)
-100 of 431 reactions put a joint more than 5 cm under, a knee in 77 of them (up to 31 cm; most
-were Bandai Namco bodies rising from the floor faded into a clip going down onto its knees), a
-hand or finger in the others (up to 34 cm); 1 now (a hip joint in a roll, 5.4 cm).
+quite agree, and toes went up to 4 cm under the floor in transitions. A hand under the floor
+there is lifted onto it by the arm's IK, as a foot is: a fade between two poses whose hands both
+clear the floor can pass one under it, and a clip cast onto longer arms puts the hands a few cm
+under (README, Real mocap, swept). Knees a fade puts under the floor are left there: with the hip
+and the ankle where they are, a kneeling knee at the bottom of its circle about them can only move
+sideways, by far more than its depth, so the fix belongs in the fade.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from . import quat
 from .retarget import foot_points, joint_path, leg_length, local_rotations, two_bone_ik
 from .skeleton import Motion, Skeleton
 
@@ -45,7 +42,6 @@ CATCH_UP_FINISH = 0.05  # m/s: ... and by this much more, so it ends (the last s
 SOFT_REACH = 0.95  # of a leg's length: a held foot asking more of it reaches less, smoothly (_eased_reach)
 MAX_OFFSET = 0.15  # leg lengths a foot is held away from where the motion puts it; beyond, it slides
 SETTLE = 1.0  # s after the reaction first looked at for the offsets to be let go (a walker's feet lift in it)
-BEND_OUTWARD = 0.25  # rad: a knee or elbow is turned onto the floor outward unless that is this much longer a turn
 SIDES = ("l", "r")
 
 
@@ -54,7 +50,7 @@ def hold_feet(
 ) -> Motion:
     """`motion` with its feet held (see the module docstring) from frame `first` on, frames =
     (first, last): slides taken back within `fades` (frame ranges [a, b)) and carried until let go,
-    looking at least to `last` plus SETTLE; feet, knees and hands brought out of the floor over
+    looking at least to `last` plus SETTLE; feet and hands lifted out of the floor over
     first..last - 1. Frames before `first` and after the hold are untouched, bit for bit. roles:
     role -> joint name (hip_l, knee_l, ankle_l, shoulder_l, elbow_l, wrist_l, ... pelvis, chest);
     floor: the height of the character's lowest foot point in its own motion (casting.Casting.sole)."""
@@ -82,7 +78,7 @@ def _hold(
     fades: list[tuple[int, int]],
     floor: float,
 ) -> tuple[np.ndarray, bool, list[tuple[list[int], np.ndarray]]] | None:
-    """The global rotations over first - 1..end - 1 with the feet held and the limbs out of the
+    """The global rotations over first - 1..end - 1 with the feet held and feet and hands out of the
     floor, whether a foot is still held at end - 1, and per limb turned its joints and the rows
     it turned; None where nothing moves."""
     first, last, end = frames
@@ -114,115 +110,51 @@ def _hold(
             goal[:, 2] += lift
             goal = _eased_reach(goal, *(pos[:, j] for j in chain))
             two_bone_ik(skeleton, pos, glob, chain, goal, moves.astype(float), left, forward)
-        outward = left if side == "l" else -left
-        turned = moves | _clear_bend(skeleton, pos, glob, chain, outward, reaction, floor)
-        if turned.any():
-            moved.append((joint_path(skeleton, chain[0], ankle), turned))
-    moved += _arms_out_of_the_floor(skeleton, pos, glob, joint, left, reaction, floor)
+        if moves.any():
+            moved.append((joint_path(skeleton, chain[0], ankle), moves))
+    moved += _hands_out_of_the_floor(skeleton, pos, glob, joint, (left, forward), reaction, floor)
     return (glob, still_held, moved) if moved else None
 
 
-def _arms_out_of_the_floor(
+def _hands_out_of_the_floor(
     skeleton: Skeleton,
     pos: np.ndarray,
     glob: np.ndarray,
     joint: dict[str, int],
-    left: np.ndarray,
+    axes: tuple[np.ndarray, np.ndarray],
     rows: np.ndarray,
     floor: float,
 ) -> list[tuple[list[int], np.ndarray]]:
-    """Per arm that a fade or a cast clip put through the floor on `rows`, its joints and the rows
-    turned (in place on pos and glob): the hand swung up onto the floor, then the elbow turned out
-    of it."""
+    """Per arm whose hand (the wrist and every joint below it) a fade or a cast clip put through the
+    floor on `rows`, its joints and the rows turned (in place on pos and glob): the hand lifted
+    straight up onto the floor by the arm's two-bone IK, as a foot is (an elbow bends the other way
+    from a knee: the body's axes turned round), keeping its turn in the world. A hand the motion
+    already has under the floor at the hit (row 0) keeps that depth, so nothing jumps there. axes:
+    the body's left and forward per frame."""
+    left, forward = axes
     moved = []
     for side in SIDES:
         chain = (joint[f"shoulder_{side}"], joint[f"elbow_{side}"], joint[f"wrist_{side}"])
-        outward = left if side == "l" else -left
-        turned = _swing_hand_up(skeleton, pos, glob, chain, rows, floor)
-        turned |= _clear_bend(skeleton, pos, glob, chain, outward, rows, floor)
+        wrist = chain[2]
+        hand = [j for j in range(skeleton.num_joints) if wrist in joint_path(skeleton, wrist, j)]
+        lowest = pos[:, hand, 2].min(axis=1)
+        need = np.where(rows, np.maximum(min(floor, float(lowest[0])) - lowest, 0.0), 0.0)
+        turned = need > 1e-6
         if turned.any():
-            moved.append((joint_path(skeleton, chain[0], chain[2]), turned))
+            goal = pos[:, wrist].copy()
+            goal[:, 2] += need
+            goal = _eased_reach(goal, *(pos[:, j] for j in chain))
+            two_bone_ik(skeleton, pos, glob, chain, goal, turned.astype(float), -left, -forward)
+            moved.append((joint_path(skeleton, chain[0], wrist), turned))
     return moved
 
 
-def _swing_hand_up(
-    skeleton: Skeleton, pos: np.ndarray, glob: np.ndarray, chain: tuple[int, int, int], rows: np.ndarray, floor: float
-) -> np.ndarray:
-    """Where a hand (the wrist and every joint below it) reaches under the floor on `rows`, the arm
-    swung up about the shoulder in its vertical plane until the hand's lowest joint is on the floor
-    (as high as it goes where the shoulder is too low for that); the elbow's bend and the hand's
-    turn in the world are kept. Returns the rows swung. A fade between a clip's hand on the floor
-    and a simulated one can pass it 30 cm under; a clip cast onto longer arms, a few cm."""
-    shoulder, elbow, wrist = chain
-    hand = [j for j in range(skeleton.num_joints) if wrist in joint_path(skeleton, wrist, j)]
-    need = np.where(rows, np.maximum(floor - pos[:, hand, 2].min(axis=1), 0.0), 0.0)
-    under = np.flatnonzero(need > 0.0)
-    s = pos[under, shoulder]
-    arm = pos[under, wrist] - s
-    reach = np.linalg.norm(arm, axis=-1)
-    rise = np.arcsin(np.clip((arm[:, 2] + need[under]) / reach, -1.0, 1.0)) - np.arcsin(arm[:, 2] / reach)
-    axis = np.cross(arm, np.array([0.0, 0.0, 1.0]))  # horizontal, across the arm: a turn about it raises the hand
-    size = np.linalg.norm(axis, axis=-1, keepdims=True)
-    axis = np.where(size > 1e-9, axis / np.maximum(size, 1e-9), np.array([1.0, 0.0, 0.0]))
-    rotation = quat.from_axis_angle(axis, rise)
-    for j in joint_path(skeleton, shoulder, wrist)[1:]:  # the forearm's and the upper arm's joints
-        glob[under, j] = quat.mul(rotation, glob[under, j])
-    pos[under, elbow] = s + quat.rotate(rotation, pos[under, elbow] - s)
-    pos[under, wrist] = s + quat.rotate(rotation, arm)
-    swung = np.zeros(len(pos), dtype=bool)
-    swung[under] = True
-    return swung
-
-
-def _clear_bend(
-    skeleton: Skeleton,
-    pos: np.ndarray,
-    glob: np.ndarray,
-    chain: tuple[int, int, int],
-    outward: np.ndarray,
-    rows: np.ndarray,
-    floor: float,
-) -> np.ndarray:
-    """Where the middle joint of a limb (a knee, an elbow) is under the floor on `rows`, the limb's
-    bend turned about the line from its top to its end just enough to bring it onto the floor (in
-    place on pos and glob; the top, the end and what hangs from it stay); returns the rows turned.
-    A fade between two poses whose knees both clear the floor can pass one under it: a Bandai
-    Namco body rising from the floor faded into a clip going down onto its knees put a knee 13 cm
-    under. Where no turn clears it, the joint is turned highest."""
-    top, middle, end = chain
-    h, k, a = pos[:, top], pos[:, middle], pos[:, end]
-    axis = (a - h) / np.maximum(np.linalg.norm(a - h, axis=-1, keepdims=True), 1e-9)
-    centre = h + axis * np.sum((k - h) * axis, axis=-1, keepdims=True)
-    radius = k - centre
-    # Turned by t about the axis, the joint is at centre + radius cos t + (axis x radius) sin t: its
-    # height is centre_z + size cos(t - phase), on the floor at t = phase -/+ room.
-    across = np.cross(axis, radius)
-    size = np.hypot(radius[:, 2], across[:, 2])
-    phase = np.arctan2(across[:, 2], radius[:, 2])
-    room = np.arccos(np.clip((floor - centre[:, 2]) / np.maximum(size, 1e-9), -1.0, 1.0))
-    turns = np.angle(np.exp(1j * np.stack([phase - room, phase + room])))
-    # The smaller turn, so the correction grows from nothing as the joint goes under; but outward
-    # (away from the other side) unless that is BEND_OUTWARD longer: at the bottom of its circle a
-    # knee has two turns of about the same size, and round-off must not pick one or the other.
-    out = np.sum(radius * outward, axis=-1) * (np.cos(turns) - 1.0) + np.sum(across * outward, axis=-1) * np.sin(turns)
-    cost = np.abs(turns) - BEND_OUTWARD * (out > 0.0)
-    turn = np.where(cost[0] <= cost[1], turns[0], turns[1])
-    under = np.flatnonzero(rows & (k[:, 2] < floor))
-    rotation = quat.from_axis_angle(axis[under], turn[under])
-    for j in joint_path(skeleton, top, end)[1:]:  # the limb's joints above its end, which keeps its turn
-        glob[under, j] = quat.mul(rotation, glob[under, j])
-    pos[under, middle] = h[under] + quat.rotate(rotation, k[under] - h[under])
-    turned = np.zeros(len(pos), dtype=bool)
-    turned[under] = True
-    return turned
-
-
 def _eased_reach(goal: np.ndarray, hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray) -> np.ndarray:
-    """The goals (T, 3) pulled in where they would straighten the leg past SOFT_REACH of its length
-    (or past the motion's own stretch, where that is more): the last few per cent of a knee's
-    extension turn it fast for a small move of the foot, which shows as a kick of the knee; eased,
-    the foot falls a little short and slides that much instead. Continuous: a goal at the motion's
-    own ankle is left where it is."""
+    """The goals (T, 3) pulled in where they would straighten the limb past SOFT_REACH of its length
+    (or past the motion's own stretch, where that is more): the last few per cent of a knee's (an
+    elbow's) extension turn it fast for a small move of the foot, which shows as a kick of the knee;
+    eased, the foot falls a little short and slides that much instead. Continuous: a goal at the
+    motion's own ankle is left where it is."""
     length = np.linalg.norm(knee - hip, axis=-1) + np.linalg.norm(ankle - knee, axis=-1)
     start = np.maximum(SOFT_REACH * length, np.linalg.norm(ankle - hip, axis=-1))
     room = np.maximum(length - start, 1e-6)

@@ -21,8 +21,8 @@ What we add beyond the paper, and why:
 - Several impacts: each starts from the motion as already reacted at its frame (Fig. 4), so a hit
   that lands during an earlier reaction reacts from that reaction.
 - Feet: where the sources cross-fade (C..F, a get-up fading in, the resume), a planted foot keeps
-  its footprint instead of sliding from one source's to the other's, and feet, knees and hands
-  that a fade or a cast clip puts through the floor are brought onto it (footing.py).
+  its footprint instead of sliding from one source's to the other's, and feet and hands that a
+  fade or a cast clip puts through the floor are lifted onto it (footing.py).
 - Impact frames are on the output's clock (the baked action's timeline); the output keeps the
   original's frames before the first impact bit for bit.
 """

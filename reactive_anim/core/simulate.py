@@ -670,42 +670,44 @@ def _to_motion(
     no body below (toes, fingers, head) take their rotation from `follow` (N, J, 4), the mocap the
     servos track; a spine body's bend is shared by the skeleton's joints it spans (_share_bends).
     What a body's joints cannot hold of the held frame (a single-hinge elbow or knee drops the
-    forearm's twist and carrying angle: up to 116 degrees on a Bandai Namco punch, the hand 37 cm
-    off) is kept as it is there, on top of the simulated rotation: `held_body_rot` (B, 4), the
-    bodies of the held frame's qpos, rebuilt the same way, says how much, so the output starts on the
-    mocap's pose instead of jumping away from it at the impact."""
+    forearm's twist and carrying angle) is kept as it is there, on top of the simulated rotation:
+    `held_body_rot` (B, 4), the bodies of the held frame's qpos, rebuilt the same way, says how much,
+    so the output starts on the mocap's pose instead of jumping away from it at the impact (README,
+    The ragdoll)."""
     skeleton = ragdoll.skeleton
     n = len(body_rot)
-    hpos, hrot = held.global_pos, held.global_rot
     local = np.broadcast_to(held.local_rot, (n,) + held.local_rot.shape).copy()
     local[:, ragdoll.leaf_joints] = follow[:, ragdoll.leaf_joints]
     joints = ragdoll.body_joints
     # The held frame's bodies as one more row, last.
-    glob = quat.mul(np.concatenate([body_rot, held_body_rot[None]]), ragdoll.neutral_global_rot[joints])
-    body_local = np.empty_like(glob)  # (N + 1, B, 4)
-    root = ragdoll.root
-    parent = skeleton.parents[root.joint]
-    if parent < 0:
-        body_local[:, 0] = glob[:, 0]
-        root_pos = pelvis_pos.copy()
-    else:
-        # Joints above the pelvis (a ground root bone) hold; the root moves so the pelvis lands right.
-        body_local[:, 0] = quat.mul(quat.conj(hrot[parent]), glob[:, 0])
-        root_pos = held.root_pos + (pelvis_pos - hpos[root.joint])
-    # Every other body at once: its parent joint's rotation is the parent body's, carried through
-    # the held merged bones between them.
-    body_parent = ragdoll.body_parents[1:]
-    parent_body_joint = joints[body_parent]
-    parent_joint = skeleton.parents[joints[1:]]
-    carry = quat.mul(quat.conj(hrot[parent_body_joint]), hrot[parent_joint])
-    parent_rot = quat.mul(glob[:, body_parent], carry)
-    body_local[:, 1:] = quat.mul(quat.conj(parent_rot), glob[:, 1:])
+    body_local = _body_local_rotations(ragdoll, held, np.concatenate([body_rot, held_body_rot[None]]))
     kept = quat.mul(quat.conj(body_local[-1]), held.local_rot[joints])
     local[:, joints] = quat.mul(body_local[:-1], kept)
+    root = ragdoll.root
+    if skeleton.parents[root.joint] < 0:
+        root_pos = pelvis_pos.copy()
+    else:  # joints above the pelvis (a ground root bone) hold; the root moves so the pelvis lands right
+        root_pos = held.root_pos + (pelvis_pos - held.global_pos[root.joint])
     _share_bends(ragdoll, local, held.local_rot)
     local = quat.make_continuous(quat.normalize(local))
     local_pos = np.broadcast_to(held.offsets, (n,) + held.offsets.shape).copy()
     return Motion(skeleton=skeleton, fps=fps, root_pos=root_pos, local_rot=local, local_pos=local_pos)
+
+
+def _body_local_rotations(ragdoll: Ragdoll, held: HeldPose, body_rot: np.ndarray) -> np.ndarray:
+    """(N, B, 4) the local rotations of the body joints for body rotations (N, B, 4): each body's
+    joint turns from its parent body, carried through the held merged bones between them (a ground
+    root bone above the pelvis holds)."""
+    skeleton, joints, hrot = ragdoll.skeleton, ragdoll.body_joints, held.global_rot
+    glob = quat.mul(body_rot, ragdoll.neutral_global_rot[joints])
+    body_local = np.empty_like(glob)
+    parent = skeleton.parents[ragdoll.root.joint]
+    body_local[:, 0] = glob[:, 0] if parent < 0 else quat.mul(quat.conj(hrot[parent]), glob[:, 0])
+    body_parent = ragdoll.body_parents[1:]
+    carry = quat.mul(quat.conj(hrot[joints[body_parent]]), hrot[skeleton.parents[joints[1:]]])
+    parent_rot = quat.mul(glob[:, body_parent], carry)
+    body_local[:, 1:] = quat.mul(quat.conj(parent_rot), glob[:, 1:])
+    return body_local
 
 
 def _share_bends(ragdoll: Ragdoll, local: np.ndarray, held: np.ndarray) -> None:

@@ -6,8 +6,8 @@
   outside the fades is the motion's own.
 - Reactions on the sample walk slide their feet less than half as far as without the hold, and
   no foot goes through the floor (without the hold, toes went up to 4 cm under).
-- A knee under the floor is turned onto it about the hip-ankle line: the hips, ankles and feet
-  stay where they were. A hand under it is swung up onto it about the shoulder, keeping its turn.
+- A hand under the floor is lifted straight up onto it, keeping its turn; a hand already under it
+  at the hit keeps that depth.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from reactive_anim.core.footing import CATCH_UP_FINISH, MAX_OFFSET, hold_feet
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.library import load_library
 from reactive_anim.core.react import ReactionSettings, character_ragdoll, react
-from reactive_anim.core.retarget import arc, foot_points, joint_path, leg_length, local_rotations
+from reactive_anim.core.retarget import foot_points, leg_length
 from reactive_anim.core.roles import assign_roles
 from reactive_anim.core.skeleton import Motion
 from tests.support.mocap import REPO
@@ -165,50 +165,7 @@ def test_no_foot_goes_through_the_floor_in_a_reaction(reactions):
     )
 
 
-def kneeling_through_the_floor(depth: float) -> Motion:
-    """The idle over the drag's frames with its pelvis `depth` m lower, thighs hanging straight down
-    and shins folded 120 degrees back (ankles behind and above the knees): the knees `depth` minus
-    the standing knee height under the floor, the feet above it."""
-    pos, glob = IDLE.global_transforms()
-    rows = slice(START, START + FRAMES)
-    _, left = ground_axes(IDLE, START)
-    down = np.array([0.0, 0.0, -1.0])
-    sk = IDLE.skeleton
-    for side in "lr":
-        hip, knee = sk.index(ROLES[f"hip_{side}"]), sk.index(ROLES[f"knee_{side}"])
-        thigh = [j for j in range(sk.num_joints) if hip in joint_path(sk, hip, j)]
-        thigh_dir = pos[rows, knee] - pos[rows, hip]
-        straight = arc(thigh_dir / np.linalg.norm(thigh_dir, axis=-1, keepdims=True), down)
-        fold = quat.from_axis_angle(left, np.radians(120.0))
-        for j in thigh:
-            glob[rows, j] = quat.mul(straight, glob[rows, j])
-            if knee in joint_path(sk, knee, j):
-                glob[rows, j] = quat.mul(fold, glob[rows, j])
-    root = IDLE.root_pos.copy()
-    root[rows, 2] -= depth
-    return replace(IDLE, root_pos=root, local_rot=local_rotations(sk, glob))
-
-
-def test_a_knee_under_the_floor_is_turned_onto_it_with_hips_and_feet_in_place():
-    kneeling = kneeling_through_the_floor(0.6)
-    floor = sole(IDLE)
-    index = IDLE.skeleton.index
-    knees = [index(ROLES[f"knee_{s}"]) for s in "lr"]
-    kept = [index(ROLES[role]) for role in ("pelvis", "hip_l", "hip_r", "ankle_l", "ankle_r", "toe_l", "toe_r")]
-    pos, glob = kneeling.global_transforms()
-    assert pos[START : START + FRAMES, knees, 2].max() < floor - 0.05  # the pose the test needs
-    assert min(contact_points(kneeling, s)[START : START + FRAMES, 2].min() for s in "lr") > floor
-    held = hold_feet(kneeling, ROLES, (START, START + FRAMES), [], floor)
-    new_pos, new_glob = held.global_transforms()
-    rows = slice(START, START + FRAMES)
-    assert new_pos[rows, knees, 2].min() > floor - 1e-6
-    assert np.allclose(new_pos[rows][:, kept], pos[rows][:, kept], atol=1e-6)
-    ankles = [index(ROLES[f"ankle_{s}"]) for s in "lr"]
-    assert np.allclose(quat.angle_between(new_glob[rows][:, ankles], glob[rows][:, ankles]), 0.0, atol=1e-6)
-    assert np.array_equal(held.local_rot[:START], kneeling.local_rot[:START])
-
-
-def test_a_hand_under_the_floor_is_swung_up_onto_it_keeping_its_turn():
+def test_a_hand_under_the_floor_is_lifted_onto_it_keeping_its_turn():
     """The idle sunk 0.85 m over the drag's frames: the hanging wrists 1-2 cm under the floor."""
     sunk = replace(IDLE, root_pos=IDLE.root_pos - np.array([0.0, 0.0, 0.85]) * _drag_rows()[:, None])
     floor = sole(IDLE)
@@ -221,6 +178,7 @@ def test_a_hand_under_the_floor_is_swung_up_onto_it_keeping_its_turn():
     held = hold_feet(sunk, ROLES, (START, START + FRAMES), [], floor)
     new_pos, new_glob = held.global_transforms()
     assert new_pos[rows, wrists, 2].min() > floor - 1e-6
+    assert np.allclose(new_pos[rows][:, wrists, :2], pos[rows][:, wrists, :2], atol=1e-6)  # lifted straight up
     assert np.allclose(new_pos[rows][:, shoulders], pos[rows][:, shoulders], atol=1e-6)
     assert np.allclose(quat.angle_between(new_glob[rows][:, wrists], glob[rows][:, wrists]), 0.0, atol=1e-6)
     assert np.array_equal(held.local_rot[:START], sunk.local_rot[:START])
@@ -231,3 +189,19 @@ def _drag_rows() -> np.ndarray:
     rows = np.zeros(IDLE.num_frames)
     rows[START : START + FRAMES] = 1.0
     return rows
+
+
+def test_a_hand_the_motion_has_under_the_floor_at_the_hit_keeps_that_depth():
+    """Sunk before the hold starts (row 0 of the hold, the hit, already 0.5-0.6 cm under): nothing to
+    jump from. The hands are left as they are where no deeper than there, and lifted to that depth
+    where the idle's sway takes them deeper (up to 1 cm)."""
+    sunk = replace(IDLE, root_pos=IDLE.root_pos - np.array([0.0, 0.0, 0.85]) * _drag_rows()[:, None])
+    held = hold_feet(sunk, ROLES, (START + 5, START + FRAMES), [], sole(IDLE))
+    wrists = [IDLE.skeleton.index(ROLES[f"wrist_{s}"]) for s in "lr"]
+    rows = slice(START + 4, START + FRAMES)
+    raw, out = sunk.global_positions()[rows, wrists], held.global_positions()[rows, wrists]
+    at_hit = raw[0, :, 2]
+    assert np.all(raw[..., 2] < sole(IDLE)) and (raw[..., 2] < at_hit - 0.003).any()  # the pose the test needs
+    assert np.all(out[..., 2] > at_hit - 1e-9) and np.all(out[..., 2] < at_hit + 1e-9)  # lifted to the hit's depth only
+    kept = raw[..., 2] >= at_hit
+    assert np.allclose(out[kept], raw[kept], atol=1e-9)

@@ -24,7 +24,15 @@ from reactive_anim.core.ragdoll import (
     part_of,
 )
 from reactive_anim.core.roles import assign_roles
-from reactive_anim.core.simulate import Workspace, _mocap_table, _place_bodies, _samples, _to_motion, simulate_impact
+from reactive_anim.core.simulate import (
+    Workspace,
+    _body_local_rotations,
+    _mocap_table,
+    _place_bodies,
+    _samples,
+    _to_motion,
+    simulate_impact,
+)
 from reactive_anim.core.skeleton import Skeleton
 from tests.support.mocap import REPO, require_mocap
 
@@ -142,6 +150,13 @@ def test_mocap_to_joint_angles_and_back_reproduces_the_pose(sample_walk, dataset
     error = np.linalg.norm(out.global_positions()[0] - motion.global_positions()[frame], axis=-1)
     assert error.max() < 1e-6
     assert quat.angle_between(out.local_rot[0], quat.normalize(motion.local_rot[frame])).max() < 1e-6
+    # What is kept of the held frame is nothing but at the single hinges.
+    rebuilt = _body_local_rotations(ragdoll, held, rots)[0]
+    lost = quat.angle_between(rebuilt, quat.normalize(held.local_rot[ragdoll.body_joints]))
+    hinged = np.array([b.name[:-2] in ("knee", "elbow") for b in ragdoll.bodies])
+    assert lost[~hinged].max() < 1e-6
+    if dataset == "bandai":
+        assert lost[hinged].max() > np.radians(5.0)  # a real rig's elbow does more than flex
 
 
 @pytest.mark.parametrize("relative", [DATASETS["bandai"], "bandai_namco/dataset-1/dataset-1_punch_normal_002.bvh"])
