@@ -103,15 +103,15 @@ def _hold(
         lift = np.where(reaction, np.maximum(floor - points[side][..., 2].min(axis=1), 0.0), 0.0)
         moves = (np.abs(offset).max(axis=1) > 1e-6) | (lift > 1e-6)
         still_held = still_held or bool(np.abs(offset[-1]).max() > 1e-6)
+        if not moves.any():
+            continue
+        goal = pos[:, ankle].copy()
+        goal[:, :2] += offset
+        goal[:, 2] += lift
         chain = (joint[f"hip_{side}"], joint[f"knee_{side}"], ankle)
-        if moves.any():
-            goal = pos[:, ankle].copy()
-            goal[:, :2] += offset
-            goal[:, 2] += lift
-            goal = _eased_reach(goal, *(pos[:, j] for j in chain))
-            two_bone_ik(skeleton, pos, glob, chain, goal, moves.astype(float), left, forward)
-        if moves.any():
-            moved.append((joint_path(skeleton, chain[0], ankle), moves))
+        goal = _eased_reach(goal, *(pos[:, j] for j in chain))
+        two_bone_ik(skeleton, pos, glob, chain, goal, moves.astype(float), left, forward)
+        moved.append((joint_path(skeleton, chain[0], ankle), moves))
     moved += _hands_out_of_the_floor(skeleton, pos, glob, joint, (left, forward), reaction, floor)
     return (glob, still_held, moved) if moved else None
 
