@@ -45,25 +45,26 @@ def _side_point(xyz: tuple[float, ...], s: float) -> np.ndarray:
 HAND_DOWN = 0.03  # wrist height of a hand flat on the floor, m
 # Face down (head towards FORWARD): hands beside the hips, then under the shoulders, push the
 # chest up, draw the knees under the hips (hands and knees), tuck the toes and push back into a
-# deep squat, stand up.
+# deep squat, stand up. Lying, the feet are a little up: with the ankles on the floor the legs,
+# not quite straight, bent their knees down into it (the knee joints 4 cm under).
 PRONE_GETUP = [
     Key(
         0.0,
         pose(z=0.11, pelvis_pitch=88.0, spine_pitch=0.0, neck_pitch=-25.0),
         hands=(0.32, 0.28, HAND_DOWN, 15.0),
-        feet=(0.12, -0.86, 0.075, 150.0),
+        feet=(0.12, -0.86, 0.25, 150.0),
     ),
     Key(
         0.4,
         pose(z=0.11, pelvis_pitch=88.0, spine_pitch=0.0, neck_pitch=-30.0),
         hands=(0.32, 0.28, HAND_DOWN, 15.0),
-        feet=(0.12, -0.86, 0.075, 150.0),
+        feet=(0.12, -0.86, 0.25, 150.0),
     ),
     Key(
         1.2,
         pose(z=0.16, pelvis_pitch=72.0, spine_pitch=-22.0, neck_pitch=-20.0),
         hands=(0.32, 0.28, HAND_DOWN, 15.0),
-        feet=(0.12, -0.84, 0.075, 150.0),
+        feet=(0.12, -0.84, 0.25, 150.0),
     ),
     Key(
         2.1,
