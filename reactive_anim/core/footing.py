@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .retarget import foot_points, joint_path, leg_length, local_rotations, two_bone_ik
+from .retarget import foot_points, joint_path, leg_length, local_rotations, lowest_foot_point, two_bone_ik
 from .skeleton import Motion, Skeleton
 
 CONTACT_HEIGHT = 0.03  # m over the floor: a foot point lower than this stands on it, fully from ...
@@ -125,8 +125,8 @@ def _hands_out_of_the_floor(
     rows: np.ndarray,
     floor: float,
 ) -> list[tuple[list[int], np.ndarray]]:
-    """Per arm whose hand (the wrist and every joint below it) a fade or a cast clip put through the
-    floor on `rows`, its joints and the rows turned (in place on pos and glob): the hand lifted
+    """Per arm whose hand (the wrist, the joints below it and their end sites) a fade or a cast clip
+    put through the floor on `rows`, its joints and the rows turned (in place on pos and glob): the hand lifted
     straight up onto the floor by the arm's two-bone IK, as a foot is (an elbow bends the other way
     from a knee: the body's axes turned round), keeping its turn in the world. A hand the motion
     already has under the floor at the hit (row 0) keeps that depth, so nothing jumps there. axes:
@@ -136,8 +136,7 @@ def _hands_out_of_the_floor(
     for side in SIDES:
         chain = (joint[f"shoulder_{side}"], joint[f"elbow_{side}"], joint[f"wrist_{side}"])
         wrist = chain[2]
-        hand = [j for j in range(skeleton.num_joints) if wrist in joint_path(skeleton, wrist, j)]
-        lowest = pos[:, hand, 2].min(axis=1)
+        lowest = lowest_foot_point(skeleton, wrist, pos, glob)  # a hand's points as a foot's: fingers, tips
         need = np.where(rows, np.maximum(min(floor, float(lowest[0])) - lowest, 0.0), 0.0)
         turned = need > 1e-6
         if turned.any():

@@ -436,7 +436,8 @@ def _plant_feet(
 
 
 def lowest_foot_point(skeleton: Skeleton, ankle: int, positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
-    """(T,) height of a foot's lowest point: the ankle, the joints below it and their end sites."""
+    """(T,) height of a foot's lowest point: the ankle, the joints below it and their end sites (a
+    hand's, from the wrist, likewise)."""
     return foot_points(skeleton, ankle, positions, rotations)[..., 2].min(axis=1)
 
 

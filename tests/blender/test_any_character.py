@@ -29,12 +29,6 @@ def _lowest_feet(motion, roles: dict[str, str]) -> np.ndarray:
     return np.minimum(*feet)
 
 
-def _take_floor(motion, roles: dict[str, str]) -> float:
-    """The lowest the feet get in the take, as the casting measures it (a calibration frame 0 left
-    out: 139_16 opens on one with the feet 0.83 m under its floor)."""
-    return _sole(motion, roles)
-
-
 def _bake_one_push(scene: bpy.types.Scene, rig: bpy.types.Object, frame: int, strength: float) -> bake.BakeResult:
     roles = assign_roles(action_io.armature_skeleton(rig))
     motion = action_io.read_motion(rig)
@@ -61,7 +55,7 @@ def test_reactions_bake_onto_shared_skeletons_with_the_feet_on_the_floor(empty_s
     # character's own floor: no foot goes through it, and a planted foot stands on it. (Where the
     # clip's feet are planted, core/test_retarget.py checks them frame by frame.)
     reaction = result.reactions[0]
-    sole = _take_floor(before, roles)
+    sole = _sole(before, roles)  # the take's floor, a calibration frame 0 left out (139_16 opens on one)
     lowest = _lowest_feet(reacted, roles)[
         reaction.frame_f : max(reaction.frame_f + 1, (reaction.frame_f + reaction.end_frame) // 2)
     ]

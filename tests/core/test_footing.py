@@ -23,7 +23,7 @@ from reactive_anim.core.footing import CATCH_UP_FINISH, MAX_OFFSET, hold_feet
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.library import load_library
 from reactive_anim.core.react import ReactionSettings, character_ragdoll, react
-from reactive_anim.core.retarget import foot_points, leg_length
+from reactive_anim.core.retarget import foot_points, leg_length, lowest_foot_point
 from reactive_anim.core.roles import assign_roles
 from reactive_anim.core.skeleton import Motion
 from tests.support.mocap import REPO
@@ -177,7 +177,7 @@ def test_a_hand_under_the_floor_is_lifted_onto_it_keeping_its_turn():
     assert pos[rows, wrists, 2].max() < floor  # the pose the test needs
     held = hold_feet(sunk, ROLES, (START, START + FRAMES), [], floor)
     new_pos, new_glob = held.global_transforms()
-    assert new_pos[rows, wrists, 2].min() > floor - 1e-6
+    assert min(_lowest_of_hand(held, s)[rows].min() for s in "lr") > floor - 1e-6
     assert np.allclose(new_pos[rows][:, wrists, :2], pos[rows][:, wrists, :2], atol=1e-6)  # lifted straight up
     assert np.allclose(new_pos[rows][:, shoulders], pos[rows][:, shoulders], atol=1e-6)
     assert np.allclose(quat.angle_between(new_glob[rows][:, wrists], glob[rows][:, wrists]), 0.0, atol=1e-6)
@@ -192,16 +192,22 @@ def _drag_rows() -> np.ndarray:
 
 
 def test_a_hand_the_motion_has_under_the_floor_at_the_hit_keeps_that_depth():
-    """Sunk before the hold starts (row 0 of the hold, the hit, already 0.5-0.6 cm under): nothing to
-    jump from. The hands are left as they are where no deeper than there, and lifted to that depth
-    where the idle's sway takes them deeper (up to 1 cm)."""
+    """Sunk before the hold starts (row 0 of the hold, the hit, already under): nothing to jump
+    from. The hands are left as they are where no deeper than there, and lifted to that depth where
+    the idle's sway takes them deeper."""
     sunk = replace(IDLE, root_pos=IDLE.root_pos - np.array([0.0, 0.0, 0.85]) * _drag_rows()[:, None])
     held = hold_feet(sunk, ROLES, (START + 5, START + FRAMES), [], sole(IDLE))
-    wrists = [IDLE.skeleton.index(ROLES[f"wrist_{s}"]) for s in "lr"]
     rows = slice(START + 4, START + FRAMES)
-    raw, out = sunk.global_positions()[rows, wrists], held.global_positions()[rows, wrists]
-    at_hit = raw[0, :, 2]
-    assert np.all(raw[..., 2] < sole(IDLE)) and (raw[..., 2] < at_hit - 0.003).any()  # the pose the test needs
-    assert np.all(out[..., 2] > at_hit - 1e-9) and np.all(out[..., 2] < at_hit + 1e-9)  # lifted to the hit's depth only
-    kept = raw[..., 2] >= at_hit
+    raw = np.stack([_lowest_of_hand(sunk, s)[rows] for s in "lr"], axis=1)
+    out = np.stack([_lowest_of_hand(held, s)[rows] for s in "lr"], axis=1)
+    at_hit = raw[0]
+    assert np.all(raw < sole(IDLE)) and (raw < at_hit - 0.003).any()  # the pose the test needs
+    assert np.all(out > at_hit - 1e-9) and np.all(out < at_hit + 1e-9)  # lifted to the hit's depth only
+    kept = raw >= at_hit
     assert np.allclose(out[kept], raw[kept], atol=1e-9)
+
+
+def _lowest_of_hand(motion: Motion, side: str) -> np.ndarray:
+    """(T,) the lowest point of a hand: the wrist, the joints below it and their end sites."""
+    pos, rot = motion.global_transforms()
+    return lowest_foot_point(motion.skeleton, motion.skeleton.index(ROLES[f"wrist_{side}"]), pos, rot)
