@@ -253,11 +253,20 @@ def tag_redraw() -> None:
 
 
 def register() -> None:
-    """Install the draw handler; not in background mode, where there is nothing to draw on."""
+    """Install the draw handler (in background mode too, where it is simply never called).
+
+    Blender runs register() inside RestrictBlend, where bpy.data has no window managers: the first
+    redraw is asked for from a timer, which runs once the add-on is enabled.
+    """
     global _handle
-    if bpy.app.background or _handle is not None:
+    if _handle is not None:
         return
     _handle = bpy.types.SpaceView3D.draw_handler_add(draw_callback, (), "WINDOW", "POST_VIEW")
+    bpy.app.timers.register(_first_redraw, first_interval=0.0)
+
+
+def _first_redraw() -> None:
+    """Timer callback: show the arrows of a file loaded before the add-on was enabled; runs once."""
     tag_redraw()
 
 
