@@ -23,6 +23,11 @@ from . import action_io, impacts, role_map, settings
 if TYPE_CHECKING:
     from bpy._typing.rna_enums import OperatorReturnItems  # fake-bpy-module's name for the result set
 
+# What one call is about (which impact, bone, frame, direction) is never carried over to the next:
+# Blender otherwise hands an operator invoked from the UI its last call's values, so the second +
+# hit the first one's bone. The strength and Flatten are carried over, as an animator's preference.
+PER_CALL = {"SKIP_SAVE"}
+
 DIRECTION_SOURCES = (
     ("TYPED", "Typed", "The direction as typed"),
     ("VIEW", "From View", "Into the screen: the push comes from where the view looks from"),
@@ -109,19 +114,24 @@ class REACTIVE_ANIM_OT_add_impact(bpy.types.Operator):
     bl_label = "Add Impact"
     bl_options = {"REGISTER", "UNDO"}
 
-    armature_name: StringProperty(name="Armature", description="The armature the impact hits (default: the panel's)")
-    bone: StringProperty(name="Bone", description="The bone that is hit (default: the active bone)")
-    frame: IntProperty(name="Frame", description="Timeline frame of the impact (default: the current frame)")
-    direction_source: EnumProperty(name="Direction", items=DIRECTION_SOURCES, default="TYPED")
-    direction: FloatVectorProperty(
-        name="Push Direction", description="World direction of the push", size=3, subtype="XYZ", default=(1.0, 0.0, 0.0)
+    armature_name: StringProperty(
+        name="Armature", description="The armature the impact hits (default: the panel's)", options=PER_CALL
     )
+    bone: StringProperty(name="Bone", description="The bone that is hit (default: the active bone)", options=PER_CALL)
+    frame: IntProperty(
+        name="Frame", description="Timeline frame of the impact (default: the current frame)", options=PER_CALL
+    )
+    direction_source: EnumProperty(name="Direction", items=DIRECTION_SOURCES, default="TYPED", options=PER_CALL)
+    direction: FloatVectorProperty(
+        name="Push Direction", description="World direction of the push", size=3, subtype="XYZ",
+        default=(1.0, 0.0, 0.0), options=PER_CALL,
+    )  # fmt: skip
     flatten: BoolProperty(
         name="Flatten", description="Lay a direction from the view flat on the ground (no up or down)", default=True
     )
     view_rotation: FloatVectorProperty(
         name="View Rotation", description="The 3D view's rotation the direction is taken from", size=4,
-        default=(1.0, 0.0, 0.0, 0.0), options={"HIDDEN"},
+        default=(1.0, 0.0, 0.0, 0.0), options={"HIDDEN", "SKIP_SAVE"},
     )  # fmt: skip
     strength: FloatProperty(
         name="Strength",
@@ -134,8 +144,8 @@ class REACTIVE_ANIM_OT_add_impact(bpy.types.Operator):
         soft_min=10.0,
         soft_max=400.0,
     )
-    reaction: EnumProperty(name="Reaction", items=impacts.REACTION_ITEMS)
-    marker_name: StringProperty(name="Marker Name", description="Default: hit_01, hit_02, ...")
+    reaction: EnumProperty(name="Reaction", items=impacts.REACTION_ITEMS, options=PER_CALL)
+    marker_name: StringProperty(name="Marker Name", description="Default: hit_01, hit_02, ...", options=PER_CALL)
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
@@ -202,7 +212,9 @@ class _OnImpact(bpy.types.Operator):
     """An operator on one impact (its uid, else the impact list's active row): `act` does the work
     and returns what to report; a ReactiveAnimError it raises is reported instead."""
 
-    uid: StringProperty(name="Impact", description="The impact marker's uid (default: the list's active row)")
+    uid: StringProperty(
+        name="Impact", description="The impact marker's uid (default: the list's active row)", options=PER_CALL
+    )
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
@@ -223,7 +235,9 @@ class REACTIVE_ANIM_OT_aim_impact(_OnImpact):
     bl_options = {"REGISTER", "UNDO"}
 
     flatten: BoolProperty(name="Flatten", description="Lay the direction flat on the ground", default=True)
-    view_rotation: FloatVectorProperty(name="View Rotation", size=4, default=(1.0, 0.0, 0.0, 0.0), options={"HIDDEN"})
+    view_rotation: FloatVectorProperty(
+        name="View Rotation", size=4, default=(1.0, 0.0, 0.0, 0.0), options={"HIDDEN", "SKIP_SAVE"}
+    )
 
     def invoke(self, context: bpy.types.Context, event: bpy.types.Event) -> set[OperatorReturnItems]:
         rotation = view_rotation_of(context)

@@ -44,7 +44,7 @@ class REACTIVE_ANIM_OT_import_bvh(bpy.types.Operator, ImportHelper):
         default="Y",
     )
     armature_name: StringProperty(
-        name="Armature Name", description="Name for the new armature (default: the file's name)"
+        name="Armature Name", description="Name for the new armature (default: the file's name)", options={"SKIP_SAVE"}
     )
 
     if TYPE_CHECKING:

@@ -107,7 +107,9 @@ class ArmatureOperator(bpy.types.Operator):
     """An operator on one armature (named, else the panel's character): `act` does the work and
     returns what to report; a ReactiveAnimError it raises is reported instead, and nothing is done."""
 
-    armature_name: StringProperty(name="Armature", description="The armature (default: the panel's)")
+    armature_name: StringProperty(
+        name="Armature", description="The armature (default: the panel's)", options={"SKIP_SAVE"}
+    )
 
     def act(self, context: bpy.types.Context, armature: bpy.types.Object) -> str:
         raise NotImplementedError

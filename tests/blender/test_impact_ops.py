@@ -200,3 +200,25 @@ def test_every_operator_has_a_tooltip_a_poll_and_a_menu_entry():
     assert set(panels.MENU_OPERATORS) == set(operators)
     for menu, entry in registry.MENUS[1:]:
         assert entry == panels.draw_menu_entry and menu in (bpy.types.VIEW3D_MT_object, bpy.types.VIEW3D_MT_pose)
+
+
+@pytest.mark.parametrize(
+    ("operator", "per_call"),
+    [
+        ("add_impact", ("armature_name", "bone", "frame", "direction_source", "direction", "view_rotation",
+                        "reaction", "marker_name")),
+        ("aim_impact", ("uid", "view_rotation")),
+        ("remove_impact", ("uid",)),
+        ("bake", ("armature_name", "library_path", "model_path")),
+        ("preview", ("armature_name", "library_path", "model_path")),
+        ("import_bvh", ("armature_name",)),
+    ],
+)  # fmt: skip
+def test_what_one_call_is_about_is_not_carried_to_the_next(operator, per_call):
+    """An operator invoked from the UI gets its last call's values for every property that is not
+    SKIP_SAVE (in a window only: background mode never does it): in a real window the second + hit
+    the first impact's bone. The strength, an animator's preference, is carried over."""
+    properties = getattr(bpy.ops.reactive_anim, operator).get_rna_type().properties
+    assert [name for name in per_call if not properties[name].is_skip_save] == []
+    if operator == "add_impact":
+        assert not properties["strength"].is_skip_save
