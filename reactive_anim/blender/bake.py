@@ -9,6 +9,11 @@ in a property group on the armature object, `Object.reactive_anim_bake`, with th
 per-impact summary for the panel. Baking an armature that already plays its reacted action bakes
 the original again and replaces the reacted action.
 
+A reaction often runs past the animation (a fall and a get-up after the walk has ended): a bake, a
+preview and an accepted preview widen the scene's frame range to what the armature plays, so that
+pressing play shows the whole reaction; clearing and discarding put back the range the animator had
+(see "The scene's frame range" below).
+
 A bake has three steps so that the UI never blocks: `prepare_bake` reads everything from the .blend
 on the main thread into a BakeJob; `BakeJob.run` computes from that alone (numpy in, numpy out, no
 bpy), so it may run in a worker thread; `commit_bake` writes the result on the main thread.
@@ -29,12 +34,12 @@ import hashlib
 import json
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, cast
 
 import bpy
-from bpy.props import PointerProperty, StringProperty
+from bpy.props import IntVectorProperty, PointerProperty, StringProperty
 
 from ..core.errors import BVHError, ImpactError, LibraryError, ReactiveAnimError, SkeletonError
 from ..core.impact import Impact
@@ -69,6 +74,19 @@ class REACTIVE_ANIM_PG_bake_state(bpy.types.PropertyGroup):
     preview_object: PointerProperty(name="Preview Ghost", type=bpy.types.Object)
     preview_action: PointerProperty(name="Preview Action", type=bpy.types.Action)
     preview_result: StringProperty(name="Preview", description="JSON: what the preview becomes once accepted")
+    # A scene's name, not a pointer: an ID pointer would drag the whole scene along when the
+    # character is appended into another file.
+    range_scene: StringProperty(
+        name="Extended Scene", description="The scene whose frame range the bake or preview widened; empty: none"
+    )
+    range_before: IntVectorProperty(
+        name="Frame Range Before", size=4,
+        description="That scene's frame start, end, preview start and end as the animator had them",
+    )  # fmt: skip
+    range_set: IntVectorProperty(
+        name="Frame Range Set", size=4,
+        description="The same four as the bake or preview set them; restored only while the scene still has these",
+    )  # fmt: skip
 
 
 def bake_state(armature: bpy.types.Object) -> REACTIVE_ANIM_PG_bake_state:
@@ -119,6 +137,7 @@ class BakeResult:
     reactions: list[Reaction]
     classifier_note: str
     seconds: float
+    range_note: str = ""  # how the bake widened the scene's frame range, if it did
 
     def impact_lines(self) -> list[str]:
         """One line per impact: frame, marker, bone, class (and how it was chosen), clip, cost, ms."""
@@ -129,7 +148,7 @@ class BakeResult:
             f"'{self.armature}': {len(self.reactions)} impacts baked into '{self.reacted_action}' "
             f"(frames {self.frame_range[0]}-{self.frame_range[1]}) in {self.seconds:.2f} s; {self.classifier_note}"
         )
-        return "\n".join([head, *self.impact_lines()])
+        return with_range_note("\n".join([head, *self.impact_lines()]), self.range_note)
 
     def rows(self) -> str:
         """Per impact, as JSON for the panel: marker, frame, bone, class, how chosen, clip, cost."""
@@ -180,6 +199,7 @@ class BakeJob:
     alone, so it may run in a worker thread while the animator keeps working."""
 
     armature: str
+    scene: str  # the scene whose markers it reads, and whose frame range the result widens
     source_action: str
     first_frame: int
     markers: list[tuple[str, int]]  # (name, frame) in impact order
@@ -253,6 +273,7 @@ def prepare_bake(
             raise ImpactError(f"{label} is on bone '{impact.bone}', which is not part of the animated skeleton")
     return BakeJob(
         armature=armature.name,
+        scene=scene.name,
         source_action=source.name,
         first_frame=first,
         markers=[(m.name, m.frame) for m in markers],
@@ -282,7 +303,9 @@ def job_result(job: BakeJob, baked: Baked, reacted_action: str, seconds: float) 
 
 def job_target(job: BakeJob) -> tuple[bpy.types.Object, bpy.types.Action]:
     """The job's armature and source action, checked unchanged since prepare_bake (the animator may
-    have worked on while the bake ran in the background)."""
+    have worked on while the bake ran in the background), and its scene still there."""
+    if job.scene not in bpy.data.scenes:
+        raise ReactiveAnimError(f"scene '{job.scene}' was removed while the bake ran; bake again")
     armature = settings.armature_named(job.armature)
     source = source_action(armature)
     if source.name != job.source_action:
@@ -294,13 +317,15 @@ def job_target(job: BakeJob) -> tuple[bpy.types.Object, bpy.types.Action]:
 
 
 def commit_bake(job: BakeJob, baked: Baked, seconds: float) -> BakeResult:
-    """Write the reacted motion as `<action>.reacted` and assign it (main thread)."""
+    """Write the reacted motion as `<action>.reacted`, assign it and widen the scene's frame range
+    to it (main thread). The range ignores a pending preview: the bake supersedes it."""
     armature, source = job_target(job)
     name = source.name + REACTED_SUFFIX
     reacted = assign_reacted(
         armature, source, lambda: action_io.write_motion(armature, baked.motion, name, frame_start=job.first_frame)
     )
-    result = job_result(job, baked, reacted.name, seconds)
+    note = extend_frame_range(bpy.data.scenes[job.scene], armature, with_preview=False)
+    result = replace(job_result(job, baked, reacted.name, seconds), range_note=note)
     record_result(armature, result.summary(), result.rows(), job.fingerprint)
     return result
 
@@ -427,4 +452,83 @@ def clear_bake(armature: bpy.types.Object) -> str:
     state.original_action = None
     for key in ("original_slot", "rotation_modes", "summary", "rows", "fingerprint"):
         setattr(state, key, "")
+    restore_frame_range(armature)
     return original.name
+
+
+# ---------------------------------------------------------------------------------------------
+# The scene's frame range
+#
+# The range the animator set is kept in the bake state (range_before) with the range a bake or
+# preview made of it (range_set). Every change fits the scene to the animator's range widened by
+# what the armature plays (its reacted action, its preview's): the range never shrinks below the
+# animator's, a rebake refits it, and once nothing plays it is the animator's range again. A scene
+# whose range is no longer range_set was changed by the animator since: that range is theirs.
+
+FrameRange = tuple[int, int, int, int]  # frame_start, frame_end, frame_preview_start, frame_preview_end
+_RANGE_FIELDS = ("frame_start", "frame_end", "frame_preview_start", "frame_preview_end")
+
+
+def extend_frame_range(scene: bpy.types.Scene, armature: bpy.types.Object, with_preview: bool = True) -> str:
+    """Widen the scene's frame range (and its preview range, if the scene uses it) to cover what the
+    armature plays, so pressing play shows the whole reaction. with_preview=False leaves out a
+    pending preview (a bake supersedes it). Call it before the operator returns, so that the change
+    is part of its undo step. Returns the summary's note on how the range differs from the
+    animator's, "" if it does not."""
+    state = bake_state(armature)
+    ours = state.range_scene == scene.name and _scene_range(scene) == tuple(state.range_set)
+    before = cast(FrameRange, tuple(state.range_before)) if ours else _scene_range(scene)
+    return _fit_frame_range(scene, armature, before, with_preview)
+
+
+def restore_frame_range(armature: bpy.types.Object) -> None:
+    """After Clear Reactions or Discard Preview: fit the scene to the animator's range and what the
+    armature still plays; the animator's range itself when nothing does. A range changed since the
+    bake or preview set it is left alone."""
+    state = bake_state(armature)
+    scene = bpy.data.scenes.get(state.range_scene) if state.range_scene else None
+    if scene is not None and _scene_range(scene) == tuple(state.range_set):
+        _fit_frame_range(scene, armature, cast(FrameRange, tuple(state.range_before)), with_preview=True)
+    else:
+        state.range_scene = ""
+
+
+def with_range_note(summary: str, note: str) -> str:
+    """A bake summary with the frame range note at the end of its first line."""
+    head, newline, lines = summary.partition("\n")
+    return f"{head}; {note}{newline}{lines}" if note else summary
+
+
+def _scene_range(scene: bpy.types.Scene) -> FrameRange:
+    return cast(FrameRange, tuple(getattr(scene, name) for name in _RANGE_FIELDS))
+
+
+def _fit_frame_range(scene: bpy.types.Scene, armature: bpy.types.Object, before: FrameRange, with_preview: bool) -> str:
+    """Set the scene's range to `before` widened by the keys of what the armature plays, record it
+    (or forget the record when nothing widens it), and return the note for the summary."""
+    state = bake_state(armature)
+    playing = [state.reacted_action] if is_baked(armature) else []
+    if with_preview and state.preview_action is not None:
+        playing.append(state.preview_action)
+    start, end, preview_start, preview_end = before
+    for action in playing:
+        first, last = (round(frame) for frame in action.curve_frame_range)  # the keys, whatever range is set
+        start, end = min(start, first), max(end, last)
+        if scene.use_preview_range:
+            preview_start, preview_end = min(preview_start, first), max(preview_end, last)
+    fitted = (start, end, preview_start, preview_end)
+    # Each start before its end: Blender pushes the end along when a start passes it, and the
+    # end's own write then sets it.
+    for name, value in zip(_RANGE_FIELDS, fitted, strict=True):
+        if getattr(scene, name) != value:
+            setattr(scene, name, value)
+    if fitted == before:
+        state.range_scene = ""
+        return ""
+    state.range_scene, state.range_before, state.range_set = scene.name, before, fitted
+    notes = []
+    if fitted[:2] != before[:2]:
+        notes.append(f"scene frame range extended to {start}-{end}")
+    if fitted[2:] != before[2:]:
+        notes.append(f"preview range extended to {preview_start}-{preview_end}")
+    return "; ".join(notes)

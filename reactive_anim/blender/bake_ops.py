@@ -45,16 +45,20 @@ def _computable(cls: type[bpy.types.Operator], context: bpy.types.Context) -> bo
 class _Computes(bpy.types.Operator):
     """What Bake and Preview share: the targets, and computing synchronously or in the background."""
 
-    armature_name: StringProperty(name="Armature", description="The armature to react (default: the panel's)")
+    armature_name: StringProperty(
+        name="Armature", description="The armature to react (default: the panel's)", options={"SKIP_SAVE"}
+    )
     library_path: StringProperty(
         name="Library",
         description="Reaction library folder or .toml (default: the scene's setting, else the bundled sample library)",
         subtype="FILE_PATH",
+        options={"SKIP_SAVE"},
     )
     model_path: StringProperty(
         name="Classifier Model",
         description="ONNX classifier model (default: the scene's setting, else the shipped one)",
         subtype="FILE_PATH",
+        options={"SKIP_SAVE"},
     )
 
     bl_options = {"UNDO"}  # no REGISTER: a redo from Adjust Last Operation would bake again, blocking
@@ -173,7 +177,7 @@ class REACTIVE_ANIM_OT_accept_preview(settings.ArmatureOperator):
         return _some_armature(cls, preview.has_preview, "There is no preview to accept: click Preview first")
 
     def act(self, context: bpy.types.Context, armature: bpy.types.Object) -> str:
-        return f"'{armature.name}' plays '{preview.accept_preview(armature)}', the accepted preview"
+        return f"'{armature.name}' plays '{preview.accept_preview(armature, context.scene)}', the accepted preview"
 
 
 class REACTIVE_ANIM_OT_discard_preview(settings.ArmatureOperator):

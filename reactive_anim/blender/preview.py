@@ -8,11 +8,14 @@ not selectable. Its action `<action>.preview` is written on the ghost, so the ch
 rotation modes and action are untouched until Accept. What the preview needs to become a bake is
 kept in the character's bake state (bake.py): the ghost, the action, and a JSON record of the
 result (summary, per-impact rows, the impacts it was made from, the bones it keys, the source).
+Showing or accepting a preview widens the scene's frame range to it, discarding it restores the
+range (bake.extend_frame_range).
 """
 
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from typing import Any, cast
 
 import bpy
@@ -31,7 +34,8 @@ def has_preview(armature: bpy.types.Object) -> bool:
 
 
 def show_preview(job: bake.BakeJob, baked: Baked, seconds: float) -> bake.BakeResult:
-    """Play the bake's result on a ghost of the job's armature (replacing an earlier preview)."""
+    """Play the bake's result on a ghost of the job's armature (replacing an earlier preview), the
+    scene's frame range widened to it."""
     armature, source = bake.job_target(job)
     discard_preview(armature)
     ghost = action = None
@@ -50,14 +54,14 @@ def show_preview(job: bake.BakeJob, baked: Baked, seconds: float) -> bake.BakeRe
     state.preview_object, state.preview_action = ghost, action
     state.preview_result = json.dumps(
         {
-            "summary": result.summary(),
+            "summary": result.summary(),  # without the range note: accepting adds its own
             "rows": result.rows(),
             "fingerprint": job.fingerprint,
             "source": source.name,
             "bones": list(baked.motion.skeleton.names),
         }
     )
-    return result
+    return replace(result, range_note=bake.extend_frame_range(bpy.data.scenes[job.scene], armature))
 
 
 def _make_ghost(armature: bpy.types.Object) -> bpy.types.Object:
@@ -83,10 +87,10 @@ def _make_ghost(armature: bpy.types.Object) -> bpy.types.Object:
     return ghost
 
 
-def accept_preview(armature: bpy.types.Object) -> str:
-    """Make the preview the armature's bake, exactly as a bake would have left it; returns the
-    reacted action's name. Raises ReactiveAnimError, changing nothing, if there is no preview or
-    the character changed since (another action, bones gone)."""
+def accept_preview(armature: bpy.types.Object, scene: bpy.types.Scene) -> str:
+    """Make the preview the armature's bake, exactly as a bake would have left it (the scene's frame
+    range covering it); returns the reacted action's name. Raises ReactiveAnimError, changing
+    nothing, if there is no preview or the character changed since (another action, bones gone)."""
     state = bake.bake_state(armature)
     action = state.preview_action
     if action is None:
@@ -111,8 +115,9 @@ def accept_preview(armature: bpy.types.Object) -> str:
 
     reacted = bake.assign_reacted(armature, source, take_preview, owned=False)
     state.preview_action = None  # the action belongs to the bake now
-    bake.record_result(armature, record["summary"], record["rows"], record["fingerprint"])
     _remove_ghost(state)
+    summary = bake.with_range_note(record["summary"], bake.extend_frame_range(scene, armature))
+    bake.record_result(armature, summary, record["rows"], record["fingerprint"])
     return reacted.name
 
 
@@ -127,6 +132,7 @@ def discard_preview(armature: bpy.types.Object) -> bool:
     _remove_ghost(state)
     if action is not None and action.users == 0:
         bpy.data.actions.remove(action)
+    bake.restore_frame_range(armature)
     return True
 
 
