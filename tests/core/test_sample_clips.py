@@ -4,7 +4,14 @@ whose steps and centre of mass do what their class says, sways, physics falls, g
 floor to standing, all above the floor, within anatomical joint ranges, smooth, and (the reactions)
 ending at rest; and a reaction library list that parses and points at files that exist.
 
-Rebuilt: every clip made without physics, and library.toml, byte for byte. The falls come from
+Rebuilt: made twice in one test session, every file comes out byte for byte the same. Against the
+committed files: library.toml byte for byte; every clip made without physics numerically, as the
+same hierarchy, channels, frame count and frame time with every number equal within the files'
+rounding (4 decimals): positions and offsets within 2 units of the last digit, and each joint's
+rotation, built from its Euler channels, within 5e-4 degrees of the committed one. Not the bytes:
+an angle of exactly 180 degrees is written 180.0000 on one CPU and -180.0000 on another (measured
+on an AMD EPYC against the committed files), and near gimbal lock another CPU may split a rotation
+into a different Euler triple; both are the same rotation. The falls come from
 MuJoCo, which gives the same bits for the same input in one process and on one machine (tested),
 but not necessarily on another CPU or build (other SIMD paths round differently), and a fall is
 chaotic once the body hits the floor. So a regenerated fall is compared with its committed file
@@ -25,6 +32,7 @@ rounding differences could start, every fall passes (after contact the falls the
 from __future__ import annotations
 
 import tomllib
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -106,10 +114,66 @@ def period(motion: Motion) -> int:
 # Reproducible
 
 
+# The clips are written to 4 decimals (catalogue.write_clip): a unit in the last printed digit.
+LAST_DIGIT = 1e-4
+# Each file's number is within half a unit of the value it was computed from, and two CPUs
+# compute the same value to within far less, so two files differ by at most one unit: positions
+# and offsets (cm) by one, a rotation (degrees) by one per angle, three in all; the tolerances
+# leave some margin and still catch a change of a thousandth of a degree or a hundredth of a mm.
+POSITION_TOLERANCE = 2 * LAST_DIGIT
+ROTATION_TOLERANCE = 5 * LAST_DIGIT
+MADE_WITHOUT_PHYSICS = [name for name in catalogue.CLIPS if name not in catalogue.PHYSICS]
+
+
+def clip_differences(fresh: bvh.BVHData, committed: bvh.BVHData) -> list[str]:
+    """How a clip differs from another beyond the rounding of its printed numbers ([] if it does
+    not): the hierarchy, channels, frame count and frame time must be the same; offsets, End Sites
+    and position channels equal within POSITION_TOLERANCE (file units); each joint's rotation in
+    each frame, built from its Euler channels, within ROTATION_TOLERANCE degrees of the other's,
+    so -180 and 180 or a gimbal-equivalent triple are the same."""
+    if fresh.names != committed.names or fresh.parents != committed.parents:
+        return ["the joints or their parents differ"]
+    if fresh.channels != committed.channels:
+        return ["the channels differ"]
+    if fresh.end_sites.keys() != committed.end_sites.keys():
+        return ["the End Sites are on other joints"]
+    if fresh.num_frames != committed.num_frames or fresh.frame_time != committed.frame_time:
+        return [
+            f"{fresh.num_frames} frames of {fresh.frame_time} s, the other {committed.num_frames} of "
+            f"{committed.frame_time} s"
+        ]
+    problems = []
+    offsets = np.abs(fresh.offsets - committed.offsets).max()
+    tips = max((np.abs(fresh.end_sites[j] - committed.end_sites[j]).max() for j in fresh.end_sites), default=0.0)
+    if max(offsets, tips) > POSITION_TOLERANCE:
+        problems.append(f"offsets differ by up to {max(offsets, tips):.4g}")
+    columns = [c for ch in fresh.channels for c in ch.position_columns]
+    if columns:
+        moved = np.abs(fresh.values[:, columns] - committed.values[:, columns])
+        if moved.max() > POSITION_TOLERANCE:
+            frame, k = np.unravel_index(np.argmax(moved), moved.shape)
+            problems.append(f"position value {columns[k] + 1} differs by {moved.max():.4g} at frame {frame}")
+    for j, ch in enumerate(fresh.channels):
+        if not ch.rotation:
+            continue
+        turns = [quat.from_euler(np.radians(d.values[:, ch.rotation_columns]), ch.rotation) for d in (fresh, committed)]
+        turn = np.degrees(quat.angle_between(*turns))
+        if turn.max() > ROTATION_TOLERANCE:
+            problems.append(f"{fresh.names[j]} turns {turn.max():.4g} degrees away at frame {np.argmax(turn)}")
+    return problems
+
+
 @pytest.fixture(scope="module")
 def regenerated(tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
     """Every clip and library.toml written afresh by the generator."""
     return catalogue.write_clips(tmp_path_factory.mktemp("sample_clips"))
+
+
+@pytest.fixture(scope="module")
+def regenerated_again(regenerated: list[Path], tmp_path_factory: pytest.TempPathFactory) -> list[Path]:
+    """The same written a second time in this session, into another folder (after the first, so
+    with the generator's caches warm)."""
+    return catalogue.write_clips(tmp_path_factory.mktemp("sample_clips_again"))
 
 
 def test_regeneration_writes_the_committed_files(regenerated: list[Path]) -> None:
@@ -117,12 +181,101 @@ def test_regeneration_writes_the_committed_files(regenerated: list[Path]) -> Non
     assert sorted(p.name for p in regenerated) == sorted(p.name for p in committed)
 
 
-def test_regenerating_gives_byte_identical_files_but_the_falls(regenerated: list[Path]) -> None:
-    """Every clip but the physics falls (compared within tolerances below), and library.toml."""
-    for path in regenerated:
-        if path.stem in catalogue.PHYSICS:
-            continue
-        assert path.read_bytes() == (CLIPS / path.name).read_bytes(), f"{path.name} differs from sample_clips/"
+def test_regenerating_twice_on_one_machine_gives_byte_identical_files(
+    regenerated: list[Path], regenerated_again: list[Path]
+) -> None:
+    """Every file, the physics falls too."""
+    assert [p.name for p in regenerated_again] == [p.name for p in regenerated]
+    for first, again in zip(regenerated, regenerated_again, strict=True):
+        assert first.read_bytes() == again.read_bytes(), f"{first.name} differs between two runs"
+
+
+def test_regenerated_library_is_byte_identical_to_the_committed_one(regenerated: list[Path]) -> None:
+    fresh = next(p for p in regenerated if p.name == "library.toml")
+    assert fresh.read_bytes() == (CLIPS / "library.toml").read_bytes(), "library.toml differs from sample_clips/"
+
+
+@pytest.mark.parametrize("name", MADE_WITHOUT_PHYSICS)
+def test_regenerated_clip_matches_the_committed_one_but_for_rounding(regenerated: list[Path], name: str) -> None:
+    """Every clip but the physics falls (compared within looser tolerances below)."""
+    fresh = bvh.parse_bvh(next(p for p in regenerated if p.name == f"{name}.bvh"))
+    problems = clip_differences(fresh, bvh.parse_bvh(CLIPS / f"{name}.bvh"))
+    assert not problems, f"{name} differs from sample_clips/: " + "; ".join(problems)
+
+
+def edited(name: str, change: Callable[[int, list[str]], None]) -> bvh.BVHData:
+    """A committed clip with `change(frame, values)` applied to the number strings of each motion
+    line, parsed."""
+    lines = (CLIPS / f"{name}.bvh").read_text(encoding="utf-8").split("\n")
+    assert lines[-1] == ""
+    first = next(i for i, line in enumerate(lines) if line.startswith("Frame Time:")) + 1
+    for frame, i in enumerate(range(first, len(lines) - 1)):
+        values = lines[i].split(" ")
+        change(frame, values)
+        lines[i] = " ".join(values)
+    return bvh.parse_bvh("\n".join(lines).encode(), name=f"{name} (edited)")
+
+
+def equivalent_triple(z: float, x: float, y: float) -> list[float]:
+    """The other ZXY Euler triple of the same rotation: (z + 180, 180 - x, y + 180), in [-180, 180)."""
+    return [(a + 180.0) % 360.0 - 180.0 for a in (z + 180.0, 180.0 - x, y + 180.0)]
+
+
+def test_clip_comparison_takes_the_same_rotations_written_otherwise() -> None:
+    """Guards the comparison: it accepts -180.0000 and 180.0000 swapped, a rotation written as its
+    other Euler triple, and every number one unit off in the last digit."""
+    name = "getup_face_down"
+    committed = bvh.parse_bvh(CLIPS / f"{name}.bvh")
+    thigh = committed.channels[committed.names.index("thigh.L")]
+    assert thigh.rotation == "ZXY"
+
+    def swap(frame: int, values: list[str]) -> None:
+        values[:] = [{"-180.0000": "180.0000", "180.0000": "-180.0000"}.get(v, v) for v in values]
+
+    swapped = edited(name, swap)
+    assert np.sum(swapped.values != committed.values) > 20, "the clip has few angles of 180 to swap"
+    assert clip_differences(swapped, committed) == []
+
+    def other_triple(frame: int, values: list[str]) -> None:
+        triple = equivalent_triple(*(float(values[c]) for c in thigh.rotation_columns))
+        for c, angle in zip(thigh.rotation_columns, triple, strict=True):
+            values[c] = f"{angle:.4f}"
+
+    other = edited(name, other_triple)
+    moved = np.abs(other.values - committed.values)[:, thigh.rotation_columns]
+    assert np.all(np.minimum(moved, 360.0 - moved).max(axis=1) > 1.0), "the triples should differ"
+    assert clip_differences(other, committed) == []
+
+    def one_unit(frame: int, values: list[str]) -> None:
+        values[:] = [f"{float(v) + (-1) ** (frame + k) * LAST_DIGIT:.4f}" for k, v in enumerate(values)]
+
+    off = edited(name, one_unit)
+    assert np.abs(off.values - committed.values).min() > 0.9 * LAST_DIGIT
+    assert clip_differences(off, committed) == []
+
+
+@pytest.mark.parametrize(
+    ("joint", "axis", "change"),
+    [
+        ("forearm.L", 0, 0.01),  # degrees, about Z
+        ("thigh.R", 1, 0.001),  # degrees, about X: ten units in the last digit
+        ("head", 2, -0.001),  # degrees, about Y
+        ("pelvis", None, 0.001),  # cm, the root's height: ten units
+    ],
+)
+def test_clip_comparison_rejects_a_real_change(joint: str, axis: int | None, change: float) -> None:
+    """Guards the comparison: one value changed in one frame beyond the files' rounding fails it."""
+    name = "steps_forward_1"
+    committed = bvh.parse_bvh(CLIPS / f"{name}.bvh")
+    ch = committed.channels[committed.names.index(joint)]
+    column = ch.position_columns[1] if axis is None else ch.rotation_columns[axis]
+    middle = committed.num_frames // 2
+
+    def nudge(frame: int, values: list[str]) -> None:
+        if frame == middle:
+            values[column] = f"{float(values[column]) + change:.4f}"
+
+    assert clip_differences(edited(name, nudge), committed) != []
 
 
 def test_a_fall_is_bit_identical_when_made_twice_in_one_process() -> None:
