@@ -6,16 +6,20 @@
 
 Each zip holds the add-on package at its root (so `__init__.py` is at the top, as Blender expects),
 `blender_manifest.toml` and `wheels/*.whl`: mujoco and onnxruntime with their dependencies for
-that platform, at the versions pinned in tools/requirements/ (simulation results change between
-MuJoCo versions, so the zip must carry exactly the pinned one). numpy is never bundled: Blender
-ships its own, and a second copy in the extension's site-packages would shadow it (bpy 5.0.1
-needs numpy < 2). The dependency resolution is still done against the numpy Blender ships, so a
-dependency that needs a different numpy fails here and not on a user's machine.
+that platform and for every Python the supported Blender lines embed (tools/requirements/
+environments.txt: 3.11 for 4.2-5.0, 3.13 for 5.1-5.2), at the versions pinned in tools/requirements/
+(simulation results change between MuJoCo versions, so the zip must carry exactly the pinned one).
+One zip serves every line: Blender installs only the wheels whose Python tag matches its own.
+numpy is never bundled: Blender ships its own, and a second copy in the extension's site-packages
+would shadow it (bpy 5.0.1 needs numpy < 2, 5.2 ships numpy 2). The dependency resolution is
+still done against the numpy Blender ships, so a dependency that needs a different numpy fails
+here and not on a user's machine.
 
-Wheels are downloaded once per platform into .venv/wheel-cache/<platform>; a second build with the
-same pins runs offline. The zip is written by `blender_ext.py build --split-platforms` (which adds
-Blender's generated platform table to the manifest) and checked by `blender_ext.py validate`,
-both from the bpy wheel of the running interpreter unless `--blender-ext` names another.
+Wheels are downloaded once per platform and Python into .venv/wheel-cache/<platform>-cp3XX; a
+second build with the same pins runs offline. The zip is written by `blender_ext.py build
+--split-platforms` (which adds Blender's generated platform table to the manifest) and checked by
+`blender_ext.py validate`, both from the bpy wheel of the running interpreter unless
+`--blender-ext` names another.
 """
 
 from __future__ import annotations
@@ -52,8 +56,10 @@ MANIFEST = REPO / "blender_manifest.toml"
 SAMPLE_LIBRARY = REPO / "sample_clips"
 SAMPLE_FILES = ("*.bvh", "library.toml", "README.md")
 PYPROJECT = REPO / "pyproject.toml"
-# The one place the bundled versions are pinned (the newest Blender line's environment).
-PINS_FILE = REPO / "tools" / "requirements" / "bpy-5.0.txt"
+REQUIREMENTS = REPO / "tools" / "requirements"
+# The supported Blender lines and the Python each embeds; the bundled versions are pinned in the
+# newest line's environment of each Python (bpy-<line>.txt).
+ENVIRONMENTS = REQUIREMENTS / "environments.txt"
 # mujoco-core is the simulator itself (the `mujoco` module); the `mujoco` meta package would add
 # mujoco-studio (a viewer with a websocket server), glfw, PyOpenGL and websockets, which a bake never uses.
 BUNDLED_ROOTS = ("mujoco-core", "onnxruntime")
@@ -61,11 +67,10 @@ BUNDLED_ROOTS = ("mujoco-core", "onnxruntime")
 NEVER_BUNDLED = ("numpy",)
 DEFAULT_CACHE = REPO / ".venv" / "wheel-cache"
 DEFAULT_DIST = REPO / "dist"
-PYTHON_VERSION = "3.11"  # Blender 4.2 to 5.0 all embed Python 3.11
 # Development-only files that must never reach a user's Blender.
 PACKAGE_IGNORE = ("__pycache__", "*.pyc", "tests", ".*", "*.blend[1-9]")
 # Sources whose change makes a built zip stale.
-BUILD_INPUTS = (PACKAGE_DIR, MANIFEST, PINS_FILE, SAMPLE_LIBRARY, Path(__file__).resolve())
+BUILD_INPUTS = (PACKAGE_DIR, MANIFEST, REQUIREMENTS, SAMPLE_LIBRARY, Path(__file__).resolve())
 
 # onnxruntime 1.32.0 publishes macOS arm64 wheels for macosx_14_0 only, so the macOS zip needs
 # macOS 14 or newer (Blender itself runs on 11.2+). Raising this lets pip pick wheels that need
@@ -81,7 +86,36 @@ class Platform:
 
     name: str
     pip_tags: tuple[str, ...]
-    markers: dict[str, str]
+    sys_platform: str
+    system: str
+    machine: str
+    os_name: str
+
+    def markers(self, python: str) -> dict[str, str]:
+        """PEP 508 environment of Blender's Python on the target, to evaluate dependency markers."""
+        return {
+            "python_version": python,
+            "python_full_version": f"{python}.0",
+            "implementation_name": "cpython",
+            "platform_python_implementation": "CPython",
+            "sys_platform": self.sys_platform,
+            "platform_system": self.system,
+            "platform_machine": self.machine,
+            "os_name": self.os_name,
+            "extra": "",
+        }
+
+
+@dataclass(frozen=True)
+class PythonLine:
+    """A Python that supported Blender lines embed, and the requirements file that pins its wheels."""
+
+    version: str
+    pins_file: Path
+
+    @property
+    def tag(self) -> str:
+        return "cp" + self.version.replace(".", "")
 
 
 def _manylinux_x86_64_tags() -> tuple[str, ...]:
@@ -98,27 +132,12 @@ def _macos_arm64_tags() -> tuple[str, ...]:
     return (*arm, *universal, *legacy_universal)
 
 
-def _markers(sys_platform: str, system: str, machine: str, os_name: str) -> dict[str, str]:
-    """PEP 508 environment of Blender's Python on the target, to evaluate dependency markers."""
-    return {
-        "python_version": PYTHON_VERSION,
-        "python_full_version": f"{PYTHON_VERSION}.0",
-        "implementation_name": "cpython",
-        "platform_python_implementation": "CPython",
-        "sys_platform": sys_platform,
-        "platform_system": system,
-        "platform_machine": machine,
-        "os_name": os_name,
-        "extra": "",
-    }
-
-
 PLATFORMS: dict[str, Platform] = {
     p.name: p
     for p in (
-        Platform("linux-x64", _manylinux_x86_64_tags(), _markers("linux", "Linux", "x86_64", "posix")),
-        Platform("windows-x64", ("win_amd64",), _markers("win32", "Windows", "AMD64", "nt")),
-        Platform("macos-arm64", _macos_arm64_tags(), _markers("darwin", "Darwin", "arm64", "posix")),
+        Platform("linux-x64", _manylinux_x86_64_tags(), "linux", "Linux", "x86_64", "posix"),
+        Platform("windows-x64", ("win_amd64",), "win32", "Windows", "AMD64", "nt"),
+        Platform("macos-arm64", _macos_arm64_tags(), "darwin", "Darwin", "arm64", "posix"),
     )
 }
 
@@ -137,7 +156,26 @@ class Wheel:
 # Pins and manifest
 
 
-def read_pins(path: Path = PINS_FILE) -> dict[str, str]:
+def blender_lines() -> dict[str, str]:
+    """`line -> Python version` of every supported Blender line (the bpy-<line> environments)."""
+    lines: dict[str, str] = {}
+    for row in ENVIRONMENTS.read_text().splitlines():
+        fields = row.split("#", 1)[0].split()
+        if fields and fields[0].startswith("bpy-"):
+            lines[fields[0].removeprefix("bpy-")] = fields[1]
+    return lines
+
+
+def python_lines() -> list[PythonLine]:
+    """Each Python the supported lines embed, pinned by the newest line that embeds it."""
+    newest: dict[str, str] = {}
+    for line, python in blender_lines().items():
+        if python not in newest or Version(line) > Version(newest[python]):
+            newest[python] = line
+    return [PythonLine(python, REQUIREMENTS / f"bpy-{line}.txt") for python, line in sorted(newest.items())]
+
+
+def read_pins(path: Path) -> dict[str, str]:
     """`name -> "name==version"` for every pinned line of a requirements file (comments skipped)."""
     pins: dict[str, str] = {}
     for line in path.read_text().splitlines():
@@ -147,11 +185,12 @@ def read_pins(path: Path = PINS_FILE) -> dict[str, str]:
     return pins
 
 
-def bundle_requirements(pins: dict[str, str]) -> list[str]:
+def bundle_requirements(pins_file: Path) -> list[str]:
     """The pinned requirement lines of the packages the zip bundles, failing if one is not pinned."""
+    pins = read_pins(pins_file)
     missing = [name for name in BUNDLED_ROOTS if name not in pins]
     if missing:
-        raise SystemExit(f"build_extension: {PINS_FILE} pins no version for {', '.join(missing)}")
+        raise SystemExit(f"build_extension: {pins_file} pins no version for {', '.join(missing)}")
     return [pins[name] for name in BUNDLED_ROOTS]
 
 
@@ -204,7 +243,9 @@ def is_up_to_date(zip_file: Path) -> bool:
 # Wheels: download, then choose what to bundle
 
 
-def pip_download(platform: Platform, requirements: list[str], constraints: list[str], dest: Path) -> None:
+def pip_download(
+    platform: Platform, python: PythonLine, requirements: list[str], constraints: list[str], dest: Path
+) -> None:
     """Let pip resolve and fetch binary wheels for the target (files already in `dest` are reused)."""
     dest.mkdir(parents=True, exist_ok=True)
     with tempfile.NamedTemporaryFile("w", suffix=".txt", delete=False) as handle:
@@ -220,7 +261,7 @@ def pip_download(platform: Platform, requirements: list[str], constraints: list[
             "off",
             "--only-binary=:all:",
             "--python-version",
-            PYTHON_VERSION,
+            python.version,
             "--implementation",
             "cp",
             *(arg for tag in platform.pip_tags for arg in ("--platform", tag)),
@@ -230,13 +271,13 @@ def pip_download(platform: Platform, requirements: list[str], constraints: list[
             str(dest),
             *requirements,
         ]
-        print(f"[{platform.name}] pip download {' '.join(requirements)}", flush=True)
+        print(f"[{platform.name} {python.tag}] pip download {' '.join(requirements)}", flush=True)
         completed = subprocess.run(command, capture_output=True, text=True)
     finally:
         os.unlink(handle.name)
     if completed.returncode != 0:
         output = completed.stdout + completed.stderr
-        raise SystemExit(f"build_extension: pip download for {platform.name} failed:\n{output}")
+        raise SystemExit(f"build_extension: pip download for {platform.name} {python.tag} failed:\n{output}")
 
 
 def read_wheel(path: Path) -> Wheel:
@@ -278,21 +319,35 @@ def resolve_bundle(wheels: list[Wheel], roots: list[str], markers: dict[str, str
 
 
 def platform_wheels(platform: Platform, cache_root: Path, refresh: bool) -> list[Path]:
-    """The wheel files to bundle for one platform, downloading only when the pins changed."""
-    pins = read_pins()
-    requirements = bundle_requirements(pins)
+    """The wheel files to bundle for one platform, for every Python of the supported lines.
+
+    A pure-Python wheel that both Pythons need is bundled once (same file name, same file).
+    """
+    unique: dict[str, Path] = {}
+    for python in python_lines():
+        for wheel in python_wheels(platform, python, cache_root, refresh):
+            unique.setdefault(wheel.name, wheel)
+    return sorted(unique.values(), key=lambda wheel: wheel.name)
+
+
+def python_wheels(platform: Platform, python: PythonLine, cache_root: Path, refresh: bool) -> list[Path]:
+    """The wheel files to bundle for one platform and Python, downloading only when the pins changed."""
+    pins = read_pins(python.pins_file)
+    requirements = bundle_requirements(python.pins_file)
     constraints = [pins[name] for name in NEVER_BUNDLED if name in pins]
-    cache = cache_root / platform.name
+    cache = cache_root / f"{platform.name}-{python.tag}"
     stamp = cache / "resolved.json"
     key = {"requirements": requirements, "constraints": constraints, "pip_tags": list(platform.pip_tags)}
     if not refresh and stamp.is_file():
         recorded = json.loads(stamp.read_text())
         files = [cache / name for name in recorded["bundle"]]
         if recorded["key"] == key and all(f.is_file() for f in files):
-            print(f"[{platform.name}] wheels from cache {cache} (offline)", flush=True)
+            print(f"[{platform.name} {python.tag}] wheels from cache {cache} (offline)", flush=True)
             return files
-    pip_download(platform, requirements, constraints, cache)
-    bundle = resolve_bundle([read_wheel(p) for p in sorted(cache.glob("*.whl"))], requirements, platform.markers)
+    pip_download(platform, python, requirements, constraints, cache)
+    bundle = resolve_bundle(
+        [read_wheel(p) for p in sorted(cache.glob("*.whl"))], requirements, platform.markers(python.version)
+    )
     stamp.write_text(json.dumps({"key": key, "bundle": [w.path.name for w in bundle]}, indent=1) + "\n")
     return [w.path for w in bundle]
 

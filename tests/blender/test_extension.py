@@ -299,7 +299,9 @@ def test_operator_registered_by_the_installed_extension(installed: dict) -> None
 
 
 def test_mujoco_and_onnxruntime_come_from_the_bundled_wheels(installed: dict, build_tool: ModuleType) -> None:
-    pinned = dict(line.split("==") for line in build_tool.bundle_requirements(build_tool.read_pins()))
+    running = "{}.{}".format(*sys.version_info[:2])
+    python = next(p for p in build_tool.python_lines() if p.version == running)
+    pinned = dict(line.split("==") for line in build_tool.bundle_requirements(python.pins_file))
     for name in ("mujoco", "onnxruntime"):
         module = installed[name]
         assert _inside(module["file"], installed["site_packages"]), f"{name} loaded from {module['file']}"
@@ -413,5 +415,12 @@ def test_zip_validates_and_holds_only_the_addon(extension_zip: Path, build_tool:
     assert not [n for n in names if n.lower().endswith(".bvh") and n.split("/")[-1] in shared_bvh]
     wheels = [n for n in names if n.startswith("wheels/")]
     assert not [w for w in wheels if w.split("/")[-1].lower().startswith("numpy")]
-    assert {"mujoco_core", "onnxruntime"} <= {w.split("/")[-1].split("-")[0] for w in wheels}
+    # One zip for every supported line: the compiled wheels for each Python those lines embed.
+    for python in build_tool.python_lines():
+        for package in ("mujoco_core", "onnxruntime"):
+            assert [w for w in wheels if w.split("/")[-1].startswith(f"{package}-") and f"-{python.tag}-" in w], (
+                package,
+                python.tag,
+                wheels,
+            )
     assert f'platforms = ["{HOST_PLATFORM}"]' in manifest
