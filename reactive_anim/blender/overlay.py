@@ -253,16 +253,23 @@ def tag_redraw() -> None:
 
 
 def register() -> None:
-    """Install the draw handler (in background mode too, where it is simply never called).
+    """Install the draw handler where there are windows to draw in.
 
     Blender runs register() inside RestrictBlend, where bpy.data has no window managers: the first
-    redraw is asked for from a timer, which runs once the add-on is enabled.
+    redraw is asked for from a timer, which runs once the add-on is enabled. Not in background
+    mode: a draw handler still installed when a background Blender 4.2 exits crashes it, and there
+    is nothing to draw on there.
     """
     global _handle
-    if _handle is not None:
+    if _handle is not None or not has_windows():
         return
     _handle = bpy.types.SpaceView3D.draw_handler_add(draw_callback, (), "WINDOW", "POST_VIEW")
     bpy.app.timers.register(_first_redraw, first_interval=0.0)
+
+
+def has_windows() -> bool:
+    """Whether this Blender draws (the one place the overlay asks; tests stand in a window here)."""
+    return not bpy.app.background
 
 
 def _first_redraw() -> None:
@@ -273,6 +280,8 @@ def _first_redraw() -> None:
 def unregister() -> None:
     """Remove the draw handler if it is installed."""
     global _handle
+    if bpy.app.timers.is_registered(_first_redraw):
+        bpy.app.timers.unregister(_first_redraw)
     if _handle is not None:
         bpy.types.SpaceView3D.draw_handler_remove(_handle, "WINDOW")
         _handle = None

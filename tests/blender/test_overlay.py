@@ -1,4 +1,4 @@
-"""The impact overlay (blender/overlay.py): arrow geometry on a real armature; a draw callback that never raises."""
+"""The impact overlay (blender/overlay.py): arrow geometry on a real armature, registration in background mode."""
 
 from __future__ import annotations
 
@@ -174,8 +174,11 @@ def test_missing_bone_or_armature_is_skipped(empty_scene):
     assert overlay.impact_arrows(scene, 50) == []
 
 
-def test_draw_never_raises(empty_scene, monkeypatch, capsys):
+def test_no_draw_handler_in_background_and_draw_never_raises(empty_scene, monkeypatch, capsys):
     assert bpy.app.background
+    overlay.register()
+    assert overlay._handle is None  # one left installed crashes a background Blender 4.2 at exit
+    overlay.unregister()
     overlay.tag_redraw()  # no windows: nothing to tag, no error
 
     # The callback swallows gpu's "not available in background mode" after one warning.

@@ -4,8 +4,8 @@
 `bpy.data` and `bpy.context` are stand-ins without the blend-file's collections: reading one there
 is "Exception in module register()" in every real Blender window, and the classes registered
 before it stay registered. Background mode used to skip the viewport overlay's registration, the
-part that read `bpy.data.window_managers`, so no headless test saw it; register() now takes the
-same path in both modes, and this test runs all of it under the restriction.
+part that read `bpy.data.window_managers`, so no headless test saw it: this test runs all of
+register() under the restriction, the window-only parts included.
 """
 
 from __future__ import annotations
@@ -21,18 +21,24 @@ from reactive_anim.blender import marker_sync, overlay, registry
 
 @pytest.fixture
 def restrict_blend(monkeypatch):
-    """Blender's own RestrictBlend, applied to the `bpy` the add-on imports.
+    """Blender's own RestrictBlend, applied to the `bpy` the add-on imports, with the parts of
+    register() that only run where there are windows included (the overlay's draw handler).
 
     In a real Blender there is one `bpy` module; the bpy wheel has two (the compiled module that
     `import bpy` gives, and the scripts' package that bpy_restrict_state imported), so the context
     manager is pointed at the one the add-on sees.
     """
+    monkeypatch.setattr(overlay, "has_windows", lambda: True)
     try:
         restrict_state = importlib.import_module("_bpy_restrict_state")  # Blender 5.0+
     except ImportError:
         restrict_state = importlib.import_module("bpy_restrict_state")
     monkeypatch.setattr(restrict_state, "_bpy", bpy)
-    return restrict_state.RestrictBlend
+    yield restrict_state.RestrictBlend
+    # Back to a background registration for the other tests: no draw handler is left installed.
+    monkeypatch.undo()
+    reactive_anim.unregister()
+    reactive_anim.register()
 
 
 def _registered() -> list[str]:
