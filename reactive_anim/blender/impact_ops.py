@@ -23,10 +23,10 @@ from . import action_io, impacts, role_map, settings
 if TYPE_CHECKING:
     from bpy._typing.rna_enums import OperatorReturnItems  # fake-bpy-module's name for the result set
 
-# What one call is about (which impact, bone, frame, direction) is never carried over to the next:
-# Blender otherwise hands an operator invoked from the UI its last call's values, so the second +
-# hit the first one's bone. The strength and Flatten are carried over, as an animator's preference.
-PER_CALL = {"SKIP_SAVE"}
+# What one call is about (which impact, bone, frame, direction) is SKIP_SAVE, never carried over to
+# the next: Blender otherwise hands an operator invoked from the UI its last call's values, so the
+# second + hit the first one's bone. The strength and Flatten are carried over, as an animator's
+# preference.
 
 DIRECTION_SOURCES = (
     ("TYPED", "Typed", "The direction as typed"),
@@ -115,16 +115,18 @@ class REACTIVE_ANIM_OT_add_impact(bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     armature_name: StringProperty(
-        name="Armature", description="The armature the impact hits (default: the panel's)", options=PER_CALL
+        name="Armature", description="The armature the impact hits (default: the panel's)", options={"SKIP_SAVE"}
     )
-    bone: StringProperty(name="Bone", description="The bone that is hit (default: the active bone)", options=PER_CALL)
+    bone: StringProperty(
+        name="Bone", description="The bone that is hit (default: the active bone)", options={"SKIP_SAVE"}
+    )
     frame: IntProperty(
-        name="Frame", description="Timeline frame of the impact (default: the current frame)", options=PER_CALL
+        name="Frame", description="Timeline frame of the impact (default: the current frame)", options={"SKIP_SAVE"}
     )
-    direction_source: EnumProperty(name="Direction", items=DIRECTION_SOURCES, default="TYPED", options=PER_CALL)
+    direction_source: EnumProperty(name="Direction", items=DIRECTION_SOURCES, default="TYPED", options={"SKIP_SAVE"})
     direction: FloatVectorProperty(
         name="Push Direction", description="World direction of the push", size=3, subtype="XYZ",
-        default=(1.0, 0.0, 0.0), options=PER_CALL,
+        default=(1.0, 0.0, 0.0), options={"SKIP_SAVE"},
     )  # fmt: skip
     flatten: BoolProperty(
         name="Flatten", description="Lay a direction from the view flat on the ground (no up or down)", default=True
@@ -144,8 +146,8 @@ class REACTIVE_ANIM_OT_add_impact(bpy.types.Operator):
         soft_min=10.0,
         soft_max=400.0,
     )
-    reaction: EnumProperty(name="Reaction", items=impacts.REACTION_ITEMS, options=PER_CALL)
-    marker_name: StringProperty(name="Marker Name", description="Default: hit_01, hit_02, ...", options=PER_CALL)
+    reaction: EnumProperty(name="Reaction", items=impacts.REACTION_ITEMS, options={"SKIP_SAVE"})
+    marker_name: StringProperty(name="Marker Name", description="Default: hit_01, hit_02, ...", options={"SKIP_SAVE"})
 
     @classmethod
     def poll(cls, context: bpy.types.Context) -> bool:
@@ -213,7 +215,7 @@ class _OnImpact(bpy.types.Operator):
     and returns what to report; a ReactiveAnimError it raises is reported instead."""
 
     uid: StringProperty(
-        name="Impact", description="The impact marker's uid (default: the list's active row)", options=PER_CALL
+        name="Impact", description="The impact marker's uid (default: the list's active row)", options={"SKIP_SAVE"}
     )
 
     @classmethod
