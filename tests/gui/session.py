@@ -205,8 +205,8 @@ def add_impacts() -> Step:
     screenshot("impacts")
 
 
-def look_at_character(view_axis: str) -> Step:
-    """The 3D view looks along an axis at the character, zoomed to fit it."""
+def look_at_character(view_axis: str, bone: str = "pelvis") -> Step:
+    """The 3D view looks along an axis at a bone of the character as it is posed now."""
     armature = character()
     with in_view():
         for ob in bpy.context.view_layer.objects:
@@ -214,8 +214,9 @@ def look_at_character(view_axis: str) -> Step:
         bpy.context.view_layer.objects.active = armature
         bpy.ops.view3d.view_axis(type=view_axis)
     yield 0.3
-    with in_view():
-        bpy.ops.view3d.view_selected()
+    view_3d = area("VIEW_3D")[1].spaces.active.region_3d
+    view_3d.view_location = armature.matrix_world @ armature.pose.bones[bone].head
+    view_3d.view_distance = 3.5
     yield 0.5
 
 
@@ -331,12 +332,13 @@ def overlay_arrow_is_drawn() -> Step:
     armature = character()
     marker = impact_markers()[0]
     data = addon("blender.impacts").impact_data(marker)
-    yield from look_at_character("RIGHT")
-    armature.select_set(False)  # the selection outline is orange too
+    area("VIEW_3D")[1].spaces.active.show_region_ui = False  # the whole view for the character
     counts = {}
     for frame in (marker.frame, marker.frame + 60):
         bpy.context.scene.frame_set(frame)
-        yield 0.8
+        yield from look_at_character("RIGHT", data.bone)
+        armature.select_set(False)  # the selection outline is orange too
+        yield 0.3
         _window, view, region = area("VIEW_3D")
         bone = armature.pose.bones[data.bone]
         tip = armature.matrix_world @ ((bone.head + bone.tail) / 2)
