@@ -8,9 +8,12 @@ the other files when one fails and exits with 1 (see _bake_command).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 import traceback
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -61,12 +64,15 @@ class _FileOutcome:
 def _bake_command(args: argparse.Namespace) -> int:
     """Bake every armature that has impact markers in each .blend; save `<name>.reacted.blend`.
 
-    Each file is opened, each armature of its scene with impact markers is baked (the
-    reactive_anim.bake operator's work: a new `<action>.reacted` action, the original kept), and the
-    result is saved next to the input, or in --out-dir, as `<name>.reacted.blend`; --overwrite saves
-    over the input instead. A file that fails (cannot be read, a bad marker, ...) is not written
-    and the others still bake. Progress goes to stderr, a summary table to stdout. Exit code 0 when
-    every file baked, 1 if any failed, 2 if the library or the classifier model cannot be opened.
+    Each file is opened, each armature that impact markers name is baked, in every scene that has
+    such markers (the reactive_anim.bake operator's work: a new `<action>.reacted` action, the
+    original kept), and the result is saved next to the input, or in --out-dir, as
+    `<name>.reacted.blend`; --overwrite saves over the input instead. Inputs that cannot be baked
+    (a folder, a missing file, two inputs that would write the same output) are reported before
+    anything is baked. A file that fails (cannot be read, a bad marker, markers naming an armature
+    the file lacks, ...) is not written and the others still bake. Progress goes to stderr, a
+    summary table to stdout. Exit code 0 when every file baked, 1 if any failed, 2 if the library
+    or the classifier model cannot be opened.
 
     The same bake inside Blender, with the extension installed and enabled (one armature; save
     explicitly, and `--python-exit-code 1` makes a failed bake a non-zero exit):
@@ -78,63 +84,82 @@ def _bake_command(args: argparse.Namespace) -> int:
     The operator also takes library_path='...' and model_path='...'; a failed bake raises
     RuntimeError with the message naming the marker, clip or file, and leaves the file as it was.
     """
+    inputs = list(dict.fromkeys(p.resolve() for p in args.blend))  # an input given twice is baked once
+    plan = _plan_outputs(inputs, args)
+    outcomes: dict[Path, _FileOutcome] = {}
+    for path, why in plan.items():
+        if isinstance(why, str):
+            print(f"error: {why}", file=sys.stderr)
+            outcomes[path] = _FileOutcome(path, result=why, failed=True)
+    to_bake = {path: out for path, out in plan.items() if isinstance(out, Path)}
+    if to_bake:
+        try:
+            library, classifier = _open_library_and_model(args)
+        except (ReactiveAnimError, OSError) as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+        for k, (path, out) in enumerate(to_bake.items(), 1):
+            print(f"[{k}/{len(to_bake)}] {path}", file=sys.stderr)
+            outcome = outcomes[path] = _bake_file(path, out, library, classifier)
+            status = ("FAILED: " if outcome.failed else "") + outcome.result
+            print(f"  {status} ({outcome.seconds:.1f} s)", file=sys.stderr)
+    _print_table([outcomes[path] for path in plan])
+    return 1 if any(o.failed for o in outcomes.values()) else 0
+
+
+def _open_library_and_model(args: argparse.Namespace) -> tuple[Library, tuple[ReactionClassifier | None, str]]:
+    """Opened once, only when some input is left to bake: every file bakes with the same ones."""
     from .blender import resources
 
-    inputs = [p.resolve() for p in args.blend]
-    try:
-        library = resources.open_library(args.library.resolve() if args.library else None)
-        classifier = resources.open_classifier(args.model.resolve() if args.model else None)
-    except (ReactiveAnimError, OSError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+    library = resources.open_library(args.library.resolve() if args.library else None)
+    classifier = resources.open_classifier(args.model.resolve() if args.model else None)
     print(f"library: {len(library.clips)} clips; {classifier[1]}", file=sys.stderr)
-    outcomes = []
-    for k, path in enumerate(inputs, 1):
-        print(f"[{k}/{len(inputs)}] {path}", file=sys.stderr)
-        outcome = _bake_file(path, _bake_output(path, args, inputs), library, classifier)
-        print(f"  {'FAILED: ' if outcome.failed else ''}{outcome.result} ({outcome.seconds:.1f} s)", file=sys.stderr)
-        outcomes.append(outcome)
-    _print_table(outcomes)
-    return 1 if any(o.failed for o in outcomes) else 0
+    return library, classifier
 
 
-def _bake_output(path: Path, args: argparse.Namespace, inputs: list[Path]) -> Path | None:
-    """Where a baked file goes; None when that would overwrite an input without --overwrite."""
-    if args.overwrite:
-        return path
-    out = (args.out_dir.resolve() if args.out_dir else path.parent) / f"{path.stem}.reacted.blend"
-    return None if out in inputs else out
+def _plan_outputs(inputs: list[Path], args: argparse.Namespace) -> dict[Path, Path | str]:
+    """Each input's output file, or why it is refused, decided before anything is baked: a folder
+    or a missing file; an output that would overwrite an input without --overwrite; an output that
+    two inputs would write (`a/shot.blend` and `b/shot.blend` into one --out-dir): neither is baked,
+    rather than the second silently replacing the first."""
+    folder = args.out_dir.resolve() if args.out_dir else None
+    outs = [path if args.overwrite else (folder or path.parent) / f"{path.stem}.reacted.blend" for path in inputs]
+    writers: dict[str, list[Path]] = {}
+    for path, out in zip(inputs, outs, strict=True):
+        if path.is_file():
+            writers.setdefault(os.path.normcase(out), []).append(path)
+    plan: dict[Path, Path | str] = {}
+    for path, out in zip(inputs, outs, strict=True):
+        same = writers.get(os.path.normcase(out), [])
+        if path.is_dir():
+            plan[path] = f"{path} is a folder; give .blend files"
+        elif not path.is_file():
+            plan[path] = f"file not found: {path}"
+        elif len(same) > 1:
+            plan[path] = f"{out} would be written by {len(same)} inputs ({', '.join(map(str, same))}): none is baked"
+        elif out in inputs and not args.overwrite:
+            plan[path] = f"the output would overwrite the input {out.name} (use --overwrite)"
+        else:
+            plan[path] = out
+    return plan
 
 
 def _bake_file(
-    path: Path, out: Path | None, library: Library, classifier: tuple[ReactionClassifier | None, str]
+    path: Path, out: Path, library: Library, classifier: tuple[ReactionClassifier | None, str]
 ) -> _FileOutcome:
-    """Open one .blend, bake its armatures with impact markers, save it to `out`."""
+    """Open one .blend, bake the armatures its impact markers name in every scene, save it to `out`."""
     import bpy
-
-    from .blender import bake
 
     start = time.perf_counter()
     outcome = _FileOutcome(path)
     try:
-        if out is None:
-            raise ReactiveAnimError(f"the output would overwrite the input {path.stem}.reacted.blend (use --overwrite)")
-        if not path.is_file():
-            raise ReactiveAnimError(f"file not found: {path}")
         try:
             bpy.ops.wm.open_mainfile(filepath=str(path), load_ui=False)
         except RuntimeError as exc:
             reason = str(exc).strip().removeprefix("Error: ")
             raise ReactiveAnimError(f"cannot open {path.name}: {reason}") from None
-        scene = bpy.context.scene
-        for name in _armatures_with_impacts(scene):
-            armature = scene.objects[name]
-            print(f"  armature '{name}'", file=sys.stderr)
-            result = bake.bake_armature(scene, armature, library, classifier=classifier, progress=_print_progress)
-            for line in result.impact_lines():
-                print(f"    {line}", file=sys.stderr)
-            outcome.impacts += len(result.reactions)
-            outcome.classes += [r.reaction_class for r in result.reactions]
+        for scene, armature in _bake_targets():
+            _bake_armature(scene, armature, library, classifier, outcome)
         if not outcome.impacts:
             outcome.result = "no impact markers: nothing baked, nothing written"
         else:
@@ -150,20 +175,105 @@ def _bake_file(
     return outcome
 
 
+def _bake_armature(
+    scene: bpy.types.Scene,
+    armature: bpy.types.Object,
+    library: Library,
+    classifier: tuple[ReactionClassifier | None, str],
+    outcome: _FileOutcome,
+) -> None:
+    """Bake one armature with its scene active: the bake reads the context scene's frame rate and
+    evaluates its view layer, as when the animator bakes in that scene."""
+    from .blender import bake
+
+    print(f"  scene '{scene.name}', armature '{armature.name}'", file=sys.stderr)
+    with _scene_active(scene):
+        result = bake.bake_armature(scene, armature, library, classifier=classifier, progress=_print_progress)
+    for line in result.impact_lines():
+        print(f"    {line}", file=sys.stderr)
+    outcome.impacts += len(result.reactions)
+    outcome.classes += [r.reaction_class for r in result.reactions]
+
+
+@contextmanager
+def _scene_active(scene: bpy.types.Scene) -> Iterator[None]:
+    """Make `scene` the context's scene, and put the file's own back (it is saved as the scene
+    the file opens on). Without a window (`blender -b`), a context override does it."""
+    import bpy
+
+    window = bpy.context.window
+    if window is None:
+        with bpy.context.temp_override(scene=scene, view_layer=scene.view_layers[0]):
+            yield
+        return
+    before = window.scene
+    window.scene = scene
+    try:
+        yield
+    finally:
+        window.scene = before
+
+
 def _print_progress(k: int, n: int, what: str) -> None:
     if k < n:
         print(f"    impact {k + 1}/{n}: {what}", file=sys.stderr)
 
 
-def _armatures_with_impacts(scene: bpy.types.Scene) -> list[str]:
-    """Armatures of the scene that impact markers name; markers naming no such armature are reported."""
+def _bake_targets() -> list[tuple[bpy.types.Scene, bpy.types.Object]]:
+    """Each scene's armatures that its impact markers name, across every scene of the open file.
+
+    Raises ReactiveAnimError, before anything is baked, naming the markers that name an armature
+    the scene lacks (renamed or deleted: baking the rest would drop those hits unnoticed) and an
+    armature with markers in two scenes (a bake reads one scene's markers: the second would
+    replace the first's reactions).
+    """
+    import bpy
+
+    targets, problems, baked_in = [], [], {}
+    for scene in bpy.data.scenes:
+        for name, markers in _impact_markers_by_armature(scene).items():
+            armature = scene.objects.get(name)
+            if armature is None or armature.type != "ARMATURE":
+                problems.append(_orphan_message(scene, name, markers))
+            elif name in baked_in:
+                problems.append(
+                    f"armature '{name}' has impact markers in scenes '{baked_in[name]}' and '{scene.name}'; "
+                    "a bake reads one scene's markers: move them into one scene"
+                )
+            else:
+                baked_in[name] = scene.name
+                targets.append((scene, armature))
+    if problems:
+        raise ReactiveAnimError("; ".join(problems))
+    return targets
+
+
+def _impact_markers_by_armature(scene: bpy.types.Scene) -> dict[str, list[str]]:
+    """The names of the scene's impact markers, by the armature each names, armatures sorted."""
     from .blender import impacts
 
-    named = {impacts.impact_data(m).armature for m in scene.timeline_markers if impacts.is_impact_marker(m)}
-    found = sorted(n for n in named if n in scene.objects and scene.objects[n].type == "ARMATURE")
-    for missing in sorted(named - set(found)):
-        print(f"  warning: impact markers name '{missing}', not an armature of this scene: ignored", file=sys.stderr)
-    return found
+    found: dict[str, list[str]] = {}
+    for marker in scene.timeline_markers:
+        if impacts.is_impact_marker(marker):
+            found.setdefault(impacts.impact_data(marker).armature, []).append(marker.name)
+    return dict(sorted(found.items()))
+
+
+def _orphan_message(scene: bpy.types.Scene, name: str, markers: list[str]) -> str:
+    """Markers naming an armature the scene lacks: which markers, which armature, and why it is missing."""
+    import bpy
+
+    found = bpy.data.objects.get(name)
+    if found is None:
+        why = "which the file does not have (renamed or deleted?)"
+    elif found.type != "ARMATURE":
+        why = f"but '{name}' is a {found.type.lower()}, not an armature"
+    else:
+        why = f"which is not in scene '{scene.name}'"
+    if len(markers) == 1:
+        return f"impact marker '{markers[0]}' in scene '{scene.name}' names armature '{name}', {why}"
+    listed = ", ".join(f"'{m}'" for m in markers)
+    return f"impact markers {listed} in scene '{scene.name}' name armature '{name}', {why}"
 
 
 def _print_table(outcomes: list[_FileOutcome]) -> None:

@@ -305,6 +305,16 @@ def _motion_from_fcurves(
     return _local_motion(skeleton, fps, local_rot, local_pos)
 
 
+def has_keyframes(action: bpy.types.Action) -> bool:
+    """Whether any F-curve of the action (of any slot, in Blender 4.4+) has a key."""
+    if hasattr(action, "layers") and (_since_4_4(action).layers or not hasattr(action, "fcurves")):
+        bags = [bag for layer in _since_4_4(action).layers for strip in layer.strips for bag in strip.channelbags]
+        curves = [fcurve for bag in bags for fcurve in bag.fcurves]
+    else:  # 4.2, or a legacy action in 4.4/4.5
+        curves = list(action.fcurves)
+    return any(len(fcurve.keyframe_points) for fcurve in curves)
+
+
 def _playing_fcurves(armature: bpy.types.Object) -> list[bpy.types.FCurve] | None:
     """The F-curves the assigned action plays on the armature (its slot's, in Blender 4.4+), or
     None where its layers could blend (more than one layer or strip)."""

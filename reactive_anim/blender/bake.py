@@ -107,7 +107,7 @@ def source_action(armature: bpy.types.Object) -> bpy.types.Action:
         return bake_state(armature).original_action
     action = armature.animation_data.action if armature.animation_data else None
     if action is None:
-        raise SkeletonError(f"armature '{armature.name}' has no action to add reactions to")
+        raise SkeletonError(settings.no_action_message(armature))
     return action
 
 
@@ -255,9 +255,19 @@ def prepare_bake(
     file at fault. Changes nothing in the .blend. Arguments as bake_armature's."""
     if not isinstance(armature.data, bpy.types.Armature):
         raise SkeletonError(f"object '{armature.name}' is not an armature")
+    if armature.library is not None:  # what a bake writes on it would not be saved
+        raise SkeletonError(
+            f"'{armature.name}' is linked from '{bpy.path.basename(armature.library.filepath)}': "
+            "make a library override (Object > Library Override > Make) to bake it"
+        )
     if armature.mode == "EDIT":
         raise SkeletonError(f"armature '{armature.name}' is in Edit Mode; leave it to bake")
+    _check_scale(armature)
     source = source_action(armature)
+    if not action_io.has_keyframes(source):
+        raise SkeletonError(
+            f"action '{source.name}' has no keyframes: key the motion, or assign the action that has it"
+        )
     first, last = round(source.frame_range[0]), round(source.frame_range[1])
     markers = impacts.impact_markers(scene, armature.name)
     if not markers:
@@ -286,6 +296,35 @@ def prepare_bake(
         settings=settings,
         fingerprint=impacts_fingerprint(scene, armature.name),
     )
+
+
+ZERO_SCALE = 1e-6  # an object axis scaled below this is taken as flattened to nothing
+
+
+def _check_scale(armature: bpy.types.Object) -> None:
+    """Refuse a world transform the bake cannot read: an axis scaled to zero (by the armature or a
+    parent) or a mirror (a negative determinant), naming the objects whose scale does it."""
+    bpy.context.view_layer.update()  # the transform as it stands now, as read_motion reads it
+    matrix = armature.matrix_world.to_3x3()
+    chain = [armature]
+    while chain[-1].parent is not None:
+        chain.append(chain[-1].parent)
+    if min(column.length for column in matrix.col) < ZERO_SCALE:
+        culprits = [ob for ob in chain if min(abs(v) for v in ob.scale) < ZERO_SCALE]
+        raise SkeletonError(
+            f"armature '{armature.name}' has a zero scale ({_scales(culprits or [armature])}): "
+            "give it a scale above 0 on every axis to bake it"
+        )
+    if matrix.determinant() < 0:
+        culprits = [ob for ob in chain if ob.scale[0] * ob.scale[1] * ob.scale[2] < 0]
+        raise SkeletonError(
+            f"armature '{armature.name}' is mirrored by a negative scale ({_scales(culprits or [armature])}), "
+            "which the bake does not support: apply the scale (Object > Apply > Scale) or un-mirror it to bake it"
+        )
+
+
+def _scales(objects: list[bpy.types.Object]) -> str:
+    return ", ".join(f"'{ob.name}' scale ({', '.join(f'{v:g}' for v in ob.scale)})" for ob in objects)
 
 
 def job_result(job: BakeJob, baked: Baked, reacted_action: str, seconds: float) -> BakeResult:

@@ -37,7 +37,10 @@ def _computable(cls: type[bpy.types.Operator], context: bpy.types.Context) -> bo
         cls.poll_message_set(f"Reactions are being computed for '{busy.job.armature}': wait, or press Esc")
         return False
     if context.scene is None or not settings.armatures_with_action():
-        cls.poll_message_set("Select an armature with an action (import a BVH first)")
+        in_nla = next((ob for ob in bpy.data.objects if settings.is_character(ob) and settings.nla_strips(ob)), None)
+        cls.poll_message_set(
+            settings.no_action_message(in_nla) if in_nla else "Select an armature with an action (import a BVH first)"
+        )
         return False
     return impact_ops.has_impacts(cls, context)
 

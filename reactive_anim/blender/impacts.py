@@ -36,6 +36,7 @@ REACTION_ITEMS = [(AUTO, "Automatic", "The classifier picks the reaction class",
     (slug, slug.replace("_", " ").capitalize(), f"Force the '{slug}' reaction class", k + 1)
     for k, slug in enumerate(CLASS_SLUGS)
 ]
+_REACTION_NUMBERS = {item[3] for item in REACTION_ITEMS}
 
 
 class REACTIVE_ANIM_PG_impact(bpy.types.PropertyGroup):
@@ -50,14 +51,15 @@ class REACTIVE_ANIM_PG_impact(bpy.types.PropertyGroup):
         subtype="XYZ",
         default=(1.0, 0.0, 0.0),
     )
+    # No hard minimum: Blender would silently turn a typed -50 into the minimum. The value is kept as
+    # typed and the bake refuses any strength not above 0, naming the marker and the value.
     strength: FloatProperty(
         name="Strength",
         description=(
-            "Impulse in N·s: 30 is a shove, 100 a strong push, 300 a tackle "
-            "(on the trunk: a hand or foot takes 50-190 at most)"
+            "Impulse in N·s, above 0 (to push the other way, turn the direction around): 30 is a shove, "
+            "100 a strong push, 300 a tackle (on the trunk: a hand or foot takes 50-190 at most)"
         ),
         default=DEFAULT_STRENGTH,
-        min=0.0,
         soft_min=10.0,
         soft_max=400.0,
     )
@@ -150,7 +152,8 @@ def read_impacts(
 
     frame_range: inclusive (first, last) timeline frames of the motion the impacts land on; default
     the frame range of the armature's action. An Impact's frame is `marker.frame - first`. A marker
-    outside the range, on a bone the armature lacks or with a bad value raises ImpactError naming it.
+    outside the range, on a bone the armature lacks, with a strength not above 0, a reaction this
+    version does not know or another bad value raises ImpactError naming it.
     """
     if frame_range is None:
         action = armature.animation_data.action if armature.animation_data else None
@@ -167,6 +170,15 @@ def read_impacts(
             raise ImpactError(f"{where} is outside the animation's frames {first}-{last}")
         if props.bone not in bones:
             raise ImpactError(f"{where} is on bone '{props.bone}', which armature '{armature.name}' does not have")
+        if not props.strength > 0:
+            turn = " (to push the other way, turn its direction around)" if props.strength < 0 else ""
+            raise ImpactError(f"{where} has strength {props.strength:g} N·s: give it a strength above 0{turn}")
+        stored = props.get("reaction")  # the enum's stored number (None: never set, the default)
+        if stored is not None and stored not in _REACTION_NUMBERS:
+            raise ImpactError(
+                f"{where} has reaction number {stored}, which this version of the add-on does not know "
+                "(saved by a newer version?): pick its reaction again"
+            )
         reaction = None if props.reaction == AUTO else props.reaction
         try:
             impacts.append(Impact(marker.frame - first, props.bone, tuple(props.direction), props.strength, reaction))

@@ -76,6 +76,9 @@ def target_armature(context: bpy.types.Context, name: str) -> bpy.types.Object:
     if found is not None:
         return found
     armatures = [ob for ob in bpy.data.objects if is_character(ob)]
+    # A linked character with a library override in the file is one character, the override.
+    overridden = {ob.override_library.reference for ob in armatures if ob.override_library is not None}
+    armatures = [ob for ob in armatures if ob not in overridden]
     if len(armatures) == 1:
         return armatures[0]
     raise SkeletonError("pick the character in the Reactions panel, select an armature, or name it (armature_name)")
@@ -84,13 +87,34 @@ def target_armature(context: bpy.types.Context, name: str) -> bpy.types.Object:
 def armature_named(name: str) -> bpy.types.Object:
     """The armature object called `name`; SkeletonError names what is missing."""
     armature = bpy.data.objects.get(name) if name else None
-    if armature is None or armature.type != "ARMATURE":
+    if armature is not None and armature.type != "ARMATURE":
+        raise SkeletonError(f"object '{name}' is a {armature.type.lower()}, not an armature")
+    if armature is None:
         raise SkeletonError(f"there is no armature called '{name}'" if name else "name the armature (armature_name)")
     return armature
 
 
 def armatures_with_action() -> list[bpy.types.Object]:
     return [ob for ob in bpy.data.objects if is_character(ob) and ob.animation_data and ob.animation_data.action]
+
+
+def nla_strips(armature: bpy.types.Object) -> list[str]:
+    """The names of the armature's NLA strips."""
+    adt = armature.animation_data
+    return [strip.name for track in adt.nla_tracks for strip in track.strips] if adt is not None else []
+
+
+def no_action_message(armature: bpy.types.Object) -> str:
+    """Why the armature has nothing to bake: its motion is in NLA strips (and how to bake from
+    them), or it has no animation at all."""
+    strips = nla_strips(armature)
+    if not strips:
+        return f"armature '{armature.name}' has no action to add reactions to"
+    return (
+        f"armature '{armature.name}' plays its motion from NLA strips ({', '.join(strips)}), not from an action: "
+        "bake them into one action (Object > Animation > Bake Action), or make a strip's action the active "
+        "action (Action Editor) and mute its track, then bake reactions"
+    )
 
 
 def active_impact_marker(scene: bpy.types.Scene, armature_name: str | None = None) -> bpy.types.TimelineMarker | None:

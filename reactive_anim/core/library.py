@@ -40,6 +40,7 @@ from __future__ import annotations
 import hashlib
 import json
 import tomllib
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -484,7 +485,11 @@ def default_cache_dir(source: str | Path) -> Path:
 
 
 def load_library(
-    source: str | Path, settings: LibrarySettings | None = None, cache_dir: str | Path | None = None
+    source: str | Path,
+    settings: LibrarySettings | None = None,
+    cache_dir: str | Path | None = None,
+    *,
+    cache: bool = True,
 ) -> Library:
     """The compiled library at `source` (folder or .toml), from the cache when unchanged.
 
@@ -492,11 +497,20 @@ def load_library(
     `<cache_dir>/file-hashes.json` remembers them by path, size and mtime, so an unchanged library
     is checked from file status alone: no clip is read, let alone parsed. A clip whose bytes change
     changes its size or mtime, is hashed afresh and gives a new key. Errors name the clip at fault.
+
+    The cache only saves time, so it never fails a load: a cache that cannot be written (a
+    read-only or full disk) is skipped, and cache=False (no folder to keep one in) reads and writes
+    none. `library.cache_path` is the cache file, None when the library is not in one.
     """
     settings = settings or LibrarySettings()
     if settings.window < 1 or not settings.fps > 0:
         raise LibraryError(f"library settings need window >= 1 and fps > 0, got {settings}")
     entries = read_manifest(source)
+    chains = read_chains(source)
+    if not cache:
+        library = compile_library(entries, settings)
+        library.chains = chains
+        return library
     cache_dir = Path(cache_dir) if cache_dir is not None else default_cache_dir(source)
     memo_path = cache_dir / "file-hashes.json"
     try:
@@ -505,18 +519,31 @@ def load_library(
     except (OSError, ValueError):
         memo = {}
     before = json.dumps(memo, sort_keys=True)
-    chains = read_chains(source)
     key = cache_key(entries, settings, memo, chains)
     if json.dumps(memo, sort_keys=True) != before:
-        cache_dir.mkdir(parents=True, exist_ok=True)
-        memo_path.write_text(json.dumps(memo, sort_keys=True), encoding="utf-8")
+        _try_write(_write_text, memo_path, json.dumps(memo, sort_keys=True))
     path = cache_dir / f"library-{key[:32]}.npz"
     library = _load(path, key) if path.is_file() else None
     if library is not None:
         library.loaded_from_cache = True
     else:
         library = compile_library(entries, settings)
-        _save(library, path, key)
+        if not _try_write(_save, library, path, key):
+            path = None
     library.cache_path = path
     library.chains = chains
     return library
+
+
+def _write_text(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text, encoding="utf-8")
+
+
+def _try_write(write: Callable[..., None], *args: object) -> bool:
+    """Run a cache write; False if the disk refused it (the library is then used uncached)."""
+    try:
+        write(*args)
+    except OSError:
+        return False
+    return True

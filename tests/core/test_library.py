@@ -132,6 +132,25 @@ def test_damaged_cache_is_rebuilt(small_library: Path, tmp_path: Path) -> None:
     assert not again.loaded_from_cache and np.array_equal(again.rot, lib.rot)
 
 
+def test_a_cache_that_cannot_be_written_does_not_fail_the_load(small_library: Path, tmp_path: Path) -> None:
+    """A read-only disk (here, as root, a cache folder under a regular file: it cannot be made)."""
+    (tmp_path / "a_file").write_text("")
+    lib = load_library(small_library, cache_dir=tmp_path / "a_file" / "cache")
+    again = load_library(small_library, cache_dir=tmp_path / "a_file" / "cache")
+    assert lib.cache_path is None and not again.loaded_from_cache and np.array_equal(again.rot, lib.rot)
+
+
+def test_no_cache_reads_and_writes_none(small_library: Path, tmp_path: Path, monkeypatch) -> None:
+    cached = load_library(small_library, cache_dir=tmp_path / "cache")
+    before = sorted((tmp_path / "cache").iterdir())
+    parses = CountParses(monkeypatch)
+    lib = load_library(small_library, cache_dir=tmp_path / "cache", cache=False)
+    assert parses.calls == 3 and not lib.loaded_from_cache and lib.cache_path is None
+    assert np.array_equal(lib.rot, cached.rot) and lib.chains == cached.chains
+    assert sorted((tmp_path / "cache").iterdir()) == before
+    assert sorted(p.name for p in small_library.iterdir()) == ["a.bvh", "b.bvh", "c.bvh", "library.toml"]
+
+
 # ---------------------------------------------------------------------------------------------
 # Errors name the clip
 
