@@ -255,7 +255,7 @@ def _impact_markers_by_armature(scene: bpy.types.Scene) -> dict[str, list[str]]:
     found: dict[str, list[str]] = {}
     for marker in scene.timeline_markers:
         if impacts.is_impact_marker(marker):
-            found.setdefault(impacts.impact_data(marker).armature, []).append(marker.name)
+            found.setdefault(impacts.character_name(marker), []).append(marker.name)
     return dict(sorted(found.items()))
 
 

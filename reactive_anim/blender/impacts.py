@@ -21,7 +21,7 @@ from collections.abc import Sequence
 from typing import cast
 
 import bpy
-from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty, StringProperty
+from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty, PointerProperty, StringProperty
 
 from ..core.classes import CLASS_SLUGS
 from ..core.errors import ImpactError, SkeletonError
@@ -43,6 +43,9 @@ class REACTIVE_ANIM_PG_impact(bpy.types.PropertyGroup):
     """The impact a timeline marker carries (empty uid: an ordinary marker)."""
 
     armature: StringProperty(name="Armature", description="Name of the armature object this impact hits")
+    # The object itself, so an impact follows its character through a rename (the name alone left
+    # the impacts behind); the name stays for files saved before and for a character deleted since.
+    character: PointerProperty(name="Character", type=bpy.types.Object, description="The armature this impact hits")
     bone: StringProperty(name="Bone", description="The bone that is hit")
     direction: FloatVectorProperty(
         name="Direction",
@@ -78,6 +81,12 @@ def is_impact_marker(marker: bpy.types.TimelineMarker) -> bool:
     return bool(impact_data(marker).uid)
 
 
+def character_name(marker: bpy.types.TimelineMarker) -> str:
+    """The name of the armature the impact hits, as it is called now."""
+    props = impact_data(marker)
+    return props.character.name if props.character is not None else props.armature
+
+
 # ---------------------------------------------------------------------------------------------
 # Add, find, read, remove
 
@@ -108,7 +117,7 @@ def add_impact(
     Impact(0.0, bone, cast(tuple[float, float, float], tuple(direction)), strength, reaction)  # checks the values
     marker = scene.timeline_markers.new(name or _free_name(scene), frame=int(frame))
     props = impact_data(marker)
-    props.armature = armature.name
+    props.armature, props.character = armature.name, armature
     props.bone = bone
     props.direction = tuple(float(v) for v in direction)
     props.strength = float(strength)
@@ -124,7 +133,7 @@ def _free_name(scene: bpy.types.Scene) -> str:
 
 def impact_markers(scene: bpy.types.Scene, armature_name: str) -> list[bpy.types.TimelineMarker]:
     """The scene's impact markers on one armature, in frame order (then name, then uid)."""
-    found = [m for m in scene.timeline_markers if is_impact_marker(m) and impact_data(m).armature == armature_name]
+    found = [m for m in scene.timeline_markers if is_impact_marker(m) and character_name(m) == armature_name]
     return sorted(found, key=lambda m: (m.frame, m.name, impact_data(m).uid))
 
 

@@ -28,7 +28,7 @@ import numpy as np
 from gpu_extras.batch import batch_for_shader
 
 from . import settings
-from .impacts import AUTO, impact_data, is_impact_marker
+from .impacts import AUTO, character_name, impact_data, is_impact_marker
 
 Vec3 = tuple[float, float, float]
 RGBA = tuple[float, float, float, float]
@@ -149,7 +149,7 @@ def impact_arrows(scene: bpy.types.Scene, frame: float, active_uid: str | None =
         if alpha is None:
             continue
         props = impact_data(marker)
-        armature = scene.objects.get(props.armature)
+        armature = scene.objects.get(character_name(marker))
         tip = bone_middle(armature, props.bone) if armature is not None else None
         direction = np.array(props.direction, dtype=float)
         norm = float(np.linalg.norm(direction))

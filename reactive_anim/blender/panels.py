@@ -70,7 +70,7 @@ class REACTIVE_ANIM_UL_impacts(bpy.types.UIList):
         character = settings.panel_character(context)
         flags = [
             self.bitflag_filter_item
-            if impacts.is_impact_marker(m) and (character is None or impacts.impact_data(m).armature == character.name)
+            if impacts.is_impact_marker(m) and (character is None or impacts.character_name(m) == character.name)
             else 0
             for m in markers
         ]

@@ -124,7 +124,7 @@ def active_impact_marker(scene: bpy.types.Scene, armature_name: str | None = Non
     if not 0 <= index < len(markers) or not impacts.is_impact_marker(markers[index]):
         return None
     marker = markers[index]
-    return marker if armature_name is None or impacts.impact_data(marker).armature == armature_name else None
+    return marker if armature_name is None or impacts.character_name(marker) == armature_name else None
 
 
 class ArmatureOperator(bpy.types.Operator):

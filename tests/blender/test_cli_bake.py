@@ -169,12 +169,13 @@ def test_bake_command_bakes_every_scene_with_impact_markers(tmp_path):
 
 
 def test_bake_command_fails_a_file_whose_markers_name_a_missing_armature(tmp_path):
-    """Markers left naming a renamed character, and one character with markers in two scenes, fail
-    the file before anything in it is baked: nothing is written."""
+    """Markers left naming a deleted character (a renamed one takes its markers along), and one
+    character with markers in two scenes, fail the file before anything in it is baked: nothing is
+    written."""
     orphans = _scene_file(tmp_path / "orphans.blend")
-    rig = bpy.data.objects["walk"]
-    rig.name = "hero"  # hit_01 and hit_02 still name 'walk'
-    impacts.add_impact(bpy.context.scene, rig, "chest", 41, FORWARD, 120.0, "step_forward")  # hero's own: hit_03
+    hero = bvh_import.import_bvh(bpy.context, WALK, name="hero")
+    impacts.add_impact(bpy.context.scene, hero, "chest", 41, FORWARD, 120.0, "step_forward")  # hero's own: hit_03
+    bpy.data.objects.remove(bpy.data.objects["walk"])  # hit_01 and hit_02 still name 'walk'
     bpy.ops.wm.save_as_mainfile(filepath=str(orphans))
     shared = _scene_file(tmp_path / "shared.blend")
     scene = _second_scene("Shot2", fps=60)

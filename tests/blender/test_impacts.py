@@ -135,3 +135,31 @@ def test_add_impact_operator_for_scripts(empty_scene):
     with pytest.raises(RuntimeError, match="there is no armature called 'nobody'"):
         bpy.ops.reactive_anim.add_impact(armature_name="nobody", bone="chest")
     assert len(empty_scene.timeline_markers) == 2
+
+
+def test_impacts_follow_their_character_through_a_rename(empty_scene, tmp_path):
+    """Renaming the armature used to orphan its impacts ("armature 'hero' has no impact markers")."""
+    scene = empty_scene
+    rig, other = _walker(), _walker("other")
+    impacts.add_impact(scene, rig, "chest", 41, FORWARD, 120.0, "step_forward")
+    impacts.add_impact(scene, other, "head", 90, FORWARD, 60.0)
+    rig.name = "hero"
+    assert [m.frame for m in impacts.impact_markers(scene, "hero")] == [41]
+    assert impacts.impact_markers(scene, "walk") == []
+    assert [m.frame for m in impacts.impact_markers(scene, "other")] == [90]
+    path = tmp_path / "renamed.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    scene = bpy.context.scene
+    assert bpy.ops.reactive_anim.bake(armature_name="hero") == {"FINISHED"}
+    assert bpy.data.objects["hero"].animation_data.action.name == "walk.reacted"
+
+
+def test_an_impact_saved_with_only_its_armature_s_name_still_finds_it(empty_scene):
+    """Files saved before impacts held their character: the name is what they have."""
+    rig = _walker()
+    marker = impacts.add_impact(empty_scene, rig, "chest", 41, FORWARD, 120.0)
+    impacts.impact_data(marker).character = None
+    assert impacts.impact_markers(empty_scene, "walk") == [marker]
+    bpy.data.objects.remove(rig)  # deleted: the name is left, and names what is missing
+    assert impacts.character_name(marker) == "walk"
