@@ -191,9 +191,47 @@ def read_motion(
         motion = None if evaluate else _motion_from_fcurves(armature, skeleton, bones, frames, fps)
         if motion is not None:
             return motion
-        pose = _evaluated_pose(armature, bones, frames)
+        with _evaluated_while_hidden(armature):
+            pose = _evaluated_pose(armature, bones, frames)
     # the evaluated pose is taken to the core's convention with the frame and the object restored
     return _motion_from_pose(armature, skeleton, bones, pose, fps)
+
+
+@contextmanager
+def _evaluated_while_hidden(armature: bpy.types.Object) -> Iterator[None]:
+    """Make Blender evaluate the armature for the frame-by-frame read, whatever its visibility.
+
+    The depsgraph skips an object disabled in viewports, or in a collection that is excluded from
+    the view layer or disabled or hidden in it: every frame then reads one frozen pose, and the bake
+    simulated a statue. For the read, the object and the layer collections that hold it are made
+    visible; everything is put back afterwards.
+    """
+    restore: list[tuple[Any, str, Any]] = [(armature, "hide_viewport", armature.hide_viewport)]
+    for path in _layer_collection_paths(bpy.context.view_layer.layer_collection, armature):
+        for layer in path:
+            restore += [(layer, "exclude", layer.exclude), (layer, "hide_viewport", layer.hide_viewport)]
+            restore.append((layer.collection, "hide_viewport", layer.collection.hide_viewport))
+    hidden = None  # the eye in the outliner, which Blender asks about only once the object is in the view layer
+    try:
+        for owner, name, value in restore:
+            if value:
+                setattr(owner, name, False)
+        hidden = armature.hide_get()
+        armature.hide_set(False)
+        yield
+    finally:
+        if hidden is not None:
+            armature.hide_set(hidden)
+        for owner, name, value in reversed(restore):
+            if value:
+                setattr(owner, name, value)
+
+
+def _layer_collection_paths(layer: bpy.types.LayerCollection, ob: bpy.types.Object) -> list[list[Any]]:
+    """Every chain of layer collections from `layer` down to one whose collection holds `ob`."""
+    here = [[layer]] if ob.name in layer.collection.objects else []
+    below = [[layer, *path] for child in layer.children for path in _layer_collection_paths(child, ob)]
+    return here + below
 
 
 def _evaluated_pose(

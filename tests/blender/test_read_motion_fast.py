@@ -178,3 +178,51 @@ def test_only_the_playing_slots_curves_are_read():
     points = bag.fcurves.new('pose.bones["b2"].rotation_euler', index=0).keyframe_points
     points.insert(1, 2.5)
     assert took_the_direct_way(read_both_ways(rig, frame_range=FRAMES))
+
+
+def _hide_in_every_way(rig: bpy.types.Object, how: str) -> None:
+    """Hide the rig the ways a scene does, each of which Blender's depsgraph then skips."""
+    if how == "object disabled in viewports":
+        rig.hide_viewport = True
+    elif how == "object hidden":
+        rig.hide_set(True)
+    else:
+        collection = bpy.data.collections.new("chars")
+        bpy.context.scene.collection.children.link(collection)
+        for owner in list(rig.users_collection):
+            owner.objects.unlink(rig)
+        collection.objects.link(rig)
+        layer = bpy.context.view_layer.layer_collection.children["chars"]
+        if how == "collection excluded":
+            layer.exclude = True
+        elif how == "collection disabled in viewports":
+            collection.hide_viewport = True
+        else:
+            layer.hide_viewport = True
+
+
+@pytest.mark.parametrize(
+    "how",
+    [
+        "object disabled in viewports",
+        "object hidden",
+        "collection excluded",
+        "collection disabled in viewports",
+        "collection hidden",
+    ],
+)
+def test_a_hidden_character_is_read_as_it_moves_and_left_hidden(how):
+    """A rig that needs Blender's evaluation (a constraint) read while hidden: every frame read one
+    frozen pose (a bake then simulated a statue and reported success)."""
+    rig = bvh_import.import_bvh(bpy.context, WALK)
+    rig.pose.bones["head"].constraints.new("LIMIT_ROTATION")  # the evaluated path, nothing limited
+    shown = action_io.read_motion(rig, frame_range=(1, 40))
+    _hide_in_every_way(rig, how)
+    layer = bpy.context.view_layer.layer_collection.children.get("chars")
+    before = (rig.hide_viewport, layer and (layer.exclude, layer.hide_viewport, layer.collection.hide_viewport))
+    hidden = action_io.read_motion(rig, frame_range=(1, 40))
+    assert np.abs(hidden.global_positions() - shown.global_positions()).max() < 1e-5
+    after = (rig.hide_viewport, layer and (layer.exclude, layer.hide_viewport, layer.collection.hide_viewport))
+    assert after == before
+    if how == "object hidden":
+        assert rig.hide_get()
