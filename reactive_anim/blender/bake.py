@@ -33,7 +33,7 @@ from __future__ import annotations
 import hashlib
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, cast
@@ -46,7 +46,7 @@ from ..core.impact import Impact
 from ..core.library import Library
 from ..core.react import Baked, Reaction, ReactionClassifier, ReactionSettings, bake_reactions
 from ..core.skeleton import Motion
-from . import action_io, impacts, resources, role_map, settings
+from . import action_io, consumed, impacts, resources, role_map, settings
 
 REACTED_SUFFIX = ".reacted"
 # The bake state a failed write puts back (the summary is only written after a bake succeeds).
@@ -74,6 +74,9 @@ class REACTIVE_ANIM_PG_bake_state(bpy.types.PropertyGroup):
     preview_object: PointerProperty(name="Preview Ghost", type=bpy.types.Object)
     preview_action: PointerProperty(name="Preview Action", type=bpy.types.Action)
     preview_result: StringProperty(name="Preview", description="JSON: what the preview becomes once accepted")
+    muted: StringProperty(
+        name="Switched Off", description="JSON: the constraints and drivers the bake consumed and muted (consumed.py)"
+    )
     # A scene's name, not a pointer: an ID pointer would drag the whole scene along when the
     # character is appended into another file.
     range_scene: StringProperty(
@@ -275,7 +278,8 @@ def prepare_bake(
     impact_list = impacts.read_impacts(scene, armature, (first, last))
     opened = library if isinstance(library, Library) else resources.open_library(library)
     model, note = classifier if classifier is not None else resources.open_classifier(model_path)
-    motion = action_io.read_motion(armature, source, (first, last))
+    with consumed.active_while(armature, bake_state(armature).muted):  # a rebake reads the original as it played
+        motion = action_io.read_motion(armature, source, (first, last))
     role_map.apply_character_roles(armature, motion.skeleton)
     labels = [impacts.marker_label(m) for m in markers]
     for label, impact in zip(labels, impact_list, strict=True):
@@ -363,10 +367,20 @@ def commit_bake(job: BakeJob, baked: Baked, seconds: float) -> BakeResult:
     reacted = assign_reacted(
         armature, source, lambda: action_io.write_motion(armature, baked.motion, name, frame_start=job.first_frame)
     )
+    switch_off_consumed(armature, baked.motion.skeleton.names)
     note = extend_frame_range(bpy.data.scenes[job.scene], armature, with_preview=False)
     result = replace(job_result(job, baked, reacted.name, seconds), range_note=note)
     record_result(armature, result.summary(), result.rows(), job.fingerprint)
     return result
+
+
+def switch_off_consumed(armature: bpy.types.Object, bones: Sequence[str]) -> None:
+    """Mute the constraints and drivers of the keyed bones, whose effect the reacted keys already
+    hold (consumed.py); those a previous bake muted stay muted and listed, for Clear."""
+    state = bake_state(armature)
+    items = consumed.from_json(state.muted) + consumed.consumed(armature, bones)
+    consumed.set_muted(armature, items, True)
+    state.muted = consumed.to_json(items)
 
 
 def record_result(armature: bpy.types.Object, summary: str, rows: str, fingerprint: str) -> None:
@@ -488,8 +502,9 @@ def clear_bake(armature: bpy.types.Object) -> str:
         bpy.data.actions.remove(reacted)
     if state.rotation_modes:
         restore_rotation_modes(armature, json.loads(state.rotation_modes))
+    consumed.set_muted(armature, consumed.from_json(state.muted), False)
     state.original_action = None
-    for key in ("original_slot", "rotation_modes", "summary", "rows", "fingerprint"):
+    for key in ("original_slot", "rotation_modes", "summary", "rows", "fingerprint", "muted"):
         setattr(state, key, "")
     restore_frame_range(armature)
     return original.name

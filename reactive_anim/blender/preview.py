@@ -114,6 +114,7 @@ def accept_preview(armature: bpy.types.Object, scene: bpy.types.Scene) -> str:
         return action
 
     reacted = bake.assign_reacted(armature, source, take_preview, owned=False)
+    bake.switch_off_consumed(armature, record["bones"])
     state.preview_action = None  # the action belongs to the bake now
     _remove_ghost(state)
     summary = bake.with_range_note(record["summary"], bake.extend_frame_range(scene, armature))
