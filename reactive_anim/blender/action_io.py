@@ -1,9 +1,13 @@
 """Armature + action <-> core.Motion, for any armature (not only BVH imports).
 
 Poses are expressed in the core's BVH-like convention: rest pose = identity rotations, rest offsets
-in world axes. With B_j the bone's rest orientation in world space (object rotation @ bone rest) and
-D_j = R_pose_j @ B_j^-1 its rotation away from rest in world space, the core's local rotation is
-L_j = D_parent^-1 @ D_j. Writing inverts this: the pose-bone quaternion is B_j^-1 @ L_j @ B_j, and a
+in world axes. Positions are measured from the object's origin, not the world's: where the object
+stands (raised onto a stage, moved across the set) changes nothing the bake computes (search,
+physics, floor), and the keys, which are the bones' own, move with the object.
+
+With B_j the bone's rest orientation in world space (object rotation @ bone rest) and D_j =
+R_pose_j @ B_j^-1 its rotation away from rest in world space, the core's local rotation is L_j =
+D_parent^-1 @ D_j. Writing inverts this: the pose-bone quaternion is B_j^-1 @ L_j @ B_j, and a
 bone's location channel is B_j^-1 (local_pos_j - rest_offset_j) / object_scale.
 
 Reading has two ways. Where the action alone moves the bones (no bone constraints, no drivers,
@@ -76,22 +80,23 @@ def _bones_in_order(armature: bpy.types.Object) -> list[bpy.types.Bone]:
     return order
 
 
-def _object_transform(armature: bpy.types.Object) -> tuple[np.ndarray, float, np.ndarray]:
-    """The object's world rotation (quaternion), uniform scale and translation."""
+def _object_transform(armature: bpy.types.Object) -> tuple[np.ndarray, float]:
+    """The object's world rotation (quaternion) and uniform scale (its location is left out: see
+    the module docstring)."""
     m = np.array(armature.matrix_world)
     scales = np.linalg.norm(m[:3, :3], axis=0)
     if not np.allclose(scales, scales[0], rtol=1e-4):
         raise SkeletonError(
             f"armature '{armature.name}' has a non-uniform object scale {tuple(scales.round(4))}; apply it first"
         )
-    return quat.from_matrix(m[:3, :3] / scales[0]), float(scales[0]), m[:3, 3]
+    return quat.from_matrix(m[:3, :3] / scales[0]), float(scales[0])
 
 
 def _rest_frames(armature: bpy.types.Object, bones: list[bpy.types.Bone]) -> tuple[np.ndarray, np.ndarray]:
-    """World rest head positions (J, 3) and rest orientations B_j (J, 4)."""
-    obj_rot, scale, translation = _object_transform(armature)
+    """Rest head positions (J, 3) from the object's origin and rest orientations B_j (J, 4)."""
+    obj_rot, scale = _object_transform(armature)
     local = np.array([np.array(b.matrix_local) for b in bones])  # (J, 4, 4), armature space
-    heads = translation + scale * quat.rotate(obj_rot, local[:, :3, 3])
+    heads = scale * quat.rotate(obj_rot, local[:, :3, 3])
     rest_rot = quat.mul(obj_rot, quat.from_matrix(_orthonormal(local[:, :3, :3])))
     return heads, rest_rot
 
@@ -110,7 +115,7 @@ def armature_skeleton(armature: bpy.types.Object) -> Skeleton:
     heads, _ = _rest_frames(armature, bones)
     offsets = heads.copy()
     offsets[1:] -= heads[parents[1:]]
-    obj_rot, scale, _ = _object_transform(armature)
+    obj_rot, scale = _object_transform(armature)
     leaves = [i for i, b in enumerate(bones) if not b.children]
     tips = np.array([np.array(bones[i].tail_local) - np.array(bones[i].head_local) for i in leaves]).reshape(-1, 3)
     tails = dict(zip(leaves, scale * quat.rotate(obj_rot, tips), strict=True))
@@ -260,9 +265,9 @@ def _motion_from_pose(
     fps: float,
 ) -> Motion:
     """The core Motion of armature-space heads (T, J, 3) and orientations (T, J, 4)."""
-    obj_rot, scale, translation = _object_transform(armature)
+    obj_rot, scale = _object_transform(armature)
     _, rest_rot = _rest_frames(armature, bones)
-    heads = translation + scale * quat.rotate(obj_rot, pose[0])
+    heads = scale * quat.rotate(obj_rot, pose[0])
     pose_rot = quat.mul(obj_rot, pose[1])
     delta = quat.mul(pose_rot, quat.conj(rest_rot))  # D_j, (T, J, 4)
     parents = skeleton.parents
@@ -334,7 +339,7 @@ def _motion_from_fcurves(
         return None
     # Writing inverted: L_j = B_j basis_j B_j^-1, local_pos_j = rest_offset_j + s B_j location_j.
     _, rest_rot = _rest_frames(armature, bones)
-    _, scale, _ = _object_transform(armature)
+    _, scale = _object_transform(armature)
     basis = _basis_rotations([pose_bones[i].rotation_mode for i in order], channels)
     local_rot = quat.sandwich(rest_rot, basis)
     connected = np.array([b.use_connect for b in bones])
@@ -451,7 +456,7 @@ def write_motion(armature: bpy.types.Object, motion: Motion, name: str, frame_st
     bones = _bones_in_order(armature)
     joints = _joint_bones(armature, motion.skeleton, bones)
     heads, rest_rot = _rest_frames(armature, bones)
-    _, scale, _ = _object_transform(armature)
+    _, scale = _object_transform(armature)
     b = rest_rot[joints]  # (J, 4)
     basis_rot = quat.make_continuous(quat.sandwich(quat.conj(b), motion.local_rot))
     rest_offsets = heads[joints].copy()

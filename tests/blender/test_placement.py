@@ -1,0 +1,58 @@
+"""Where the character stands changes nothing the bake computes: raised onto a stage, moved across
+the set or turned (its pushes turned with it), the same clips are chosen at the same costs and the
+same keys are written; the keys, which are the bones' own, move with the object. (Raised 1 m, the
+search used to pick other clips at costs 72 and 75 instead of 24 and 34: it compared world heights.)"""
+
+from __future__ import annotations
+
+import json
+
+import bpy
+import numpy as np
+import pytest
+from mathutils import Matrix
+
+from reactive_anim.blender import bake, impacts
+from tests.support.actions import fcurves
+from tests.support.bake_scene import walk_with_impacts
+
+
+def _bake(rig: bpy.types.Object) -> tuple[list, dict[tuple[str, int], np.ndarray]]:
+    """The bake's per-impact rows (class, clip, cost, ...) and every key of the reacted action."""
+    assert bpy.ops.reactive_anim.bake(armature_name=rig.name) == {"FINISHED"}
+    keys = {}
+    for fc in fcurves(rig.animation_data.action):
+        co = np.empty(len(fc.keyframe_points) * 2)
+        fc.keyframe_points.foreach_get("co", co)
+        keys[(fc.data_path, fc.array_index)] = co
+    return json.loads(bake.bake_state(rig).rows), keys
+
+
+@pytest.mark.parametrize(
+    ("where", "location", "turn"),
+    [("raised 1 m", (0.0, 0.0, 1.0), 0.0), ("moved", (3.0, -2.0, 0.0), 0.0), ("turned", (0.0, 0.0, 0.0), 0.7)],
+)
+def test_the_same_reactions_wherever_the_character_stands(empty_scene, where, location, turn):
+    rig = walk_with_impacts(empty_scene)
+    rows, keys = _bake(rig)
+    bpy.context.scene.frame_set(30)
+    pelvis = rig.pose.bones["pelvis"].head.copy()  # the object at the origin: world = object space
+    assert bpy.ops.reactive_anim.clear_bake(armature_name=rig.name) == {"FINISHED"}
+
+    rig.location, rig.rotation_euler = location, (0.0, 0.0, turn)
+    spin = Matrix.Rotation(turn, 3, "Z")
+    for marker in impacts.impact_markers(empty_scene, rig.name):
+        data = impacts.impact_data(marker)
+        data.direction = spin @ data.direction  # the same push, as the character feels it
+    placed_rows, placed_keys = _bake(rig)
+
+    assert [(r["clip"], r["class"]) for r in placed_rows] == [(r["clip"], r["class"]) for r in rows], where
+    np.testing.assert_allclose([r["cost"] for r in placed_rows], [r["cost"] for r in rows], atol=1e-3)
+    assert placed_keys.keys() == keys.keys()
+    tolerance = 0.0 if turn == 0.0 else 2e-3  # a turned object's rest frames differ by float round-off
+    for channel, values in keys.items():
+        assert np.abs(placed_keys[channel] - values).max() <= tolerance, (where, channel)
+    # the bake plays where the object is: the pelvis moved and turned with it
+    bpy.context.scene.frame_set(30)
+    placed = rig.matrix_world @ rig.pose.bones["pelvis"].head
+    assert (placed - rig.matrix_world @ pelvis).length < 1e-4
