@@ -15,6 +15,7 @@ validation and test splits keep whole frames apart (no state seen in training is
 from __future__ import annotations
 
 import math
+import multiprocessing
 import os
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
@@ -223,7 +224,9 @@ def _run(jobs: list[tuple[str, list[Push]]], workers: int) -> Iterator[list]:
     if workers <= 1:
         yield from map(_simulate_group, jobs)
         return
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    # forkserver: fork() from a process whose MuJoCo/onnxruntime threads are running can deadlock
+    # (Python 3.13 warns; 3.14 makes it the default on Linux).
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("forkserver")) as pool:
         yield from pool.map(_simulate_group, jobs)
 
 
