@@ -167,6 +167,7 @@ class BakeResult:
                     "then": r.chained or "",
                     "cost": round(r.cost, 2),
                     "accepted": r.accepted,
+                    "note": r.note,
                 }
                 for (name, frame), r in zip(self.markers, self.reactions, strict=True)
             ]
@@ -186,9 +187,10 @@ def _chosen_by(r: Reaction) -> str:
 def _impact_line(name: str, frame: int, r: Reaction) -> str:
     over = "" if r.accepted else " (over the search threshold)"
     then = f", then {r.chained}" if r.chained else ""
+    note = f"; {r.note}" if r.note else ""  # e.g. the library lacks the class the push called for
     return (
         f"frame {frame} '{name}' {r.impact.bone}: {r.reaction_class} ({_chosen_by(r)}), clip {r.clip}{then}, "
-        f"cost {r.cost:.1f}{over}, {r.timings.get('total', 0.0) * 1000:.0f} ms"
+        f"cost {r.cost:.1f}{over}, {r.timings.get('total', 0.0) * 1000:.0f} ms{note}"
     )
 
 

@@ -237,6 +237,8 @@ def _draw_rows(layout: bpy.types.UILayout, title: str, rows_json: str) -> None:
         col.label(text=f"{row['frame']} {row['marker']} ({row['bone']}): {row['class']}", icon="MARKER")
         then = f" then {row['then']}" if row["then"] else ""
         col.label(text=f"    {row['clip']}{then}, cost {row['cost']:.1f}{over}; {row['chosen_by']}")
+        if row.get("note"):  # rows saved before notes existed have none
+            col.label(text=f"    {row['note']}", icon="INFO")
 
 
 # Every operator, in the order the Reactions menu lists them.

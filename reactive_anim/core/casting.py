@@ -16,15 +16,11 @@ from functools import cached_property
 
 import numpy as np
 
-from .library import Library
+from .library import Library, take_start
 from .retarget import Pose, RetargetMap, lowest_foot_point, reference_pose, retarget, retarget_map
 from .roles import SIDES, assign_roles
 from .skeleton import Motion, Skeleton
 from .window import Query, query_from_motion
-
-# m/s: faster than a body's joints move in a take (the shared takes peak at 13); the shared files that
-# open on a calibration pose leave it at 77-172
-CALIBRATION_JUMP = 20.0
 
 
 @dataclass
@@ -103,20 +99,13 @@ class Casting:
 def _sole(motion: Motion, roles: dict[str, str]) -> float:
     """The lowest any foot of the motion gets (toes, end sites): where its floor is for its feet.
     A toe joint may sit centimetres over the real sole, and a file's floor anywhere. A first frame
-    the take leaves faster than CALIBRATION_JUMP is a calibration pose, not the take, and is left
-    out: CMU 139_16 and 140_01 open on one with the feet 0.8 m under their floor, and every cast
-    clip was held that far down."""
+    the take leaves faster than library.CALIBRATION_JUMP is a calibration pose, not the take, and is
+    left out (library.take_start, the library's rule for its clips): CMU 139_16 and 140_01 open on
+    one with the feet 0.8 m under their floor, and every cast clip was held that far down."""
     pos, rot = motion.global_transforms()
     sk = motion.skeleton
     lowest = np.minimum(*(lowest_foot_point(sk, sk.index(roles[f"ankle_{s}"]), pos, rot) for s in SIDES))
-    return float(lowest[_take_start(pos, motion.fps) :].min())
-
-
-def _take_start(pos: np.ndarray, fps: float) -> int:
-    """1 when some joint leaves frame 0 (pos (T, J, 3)) faster than CALIBRATION_JUMP, else 0."""
-    if len(pos) < 2:
-        return 0
-    return int(np.linalg.norm(pos[1] - pos[0], axis=-1).max() * fps > CALIBRATION_JUMP)
+    return float(lowest[take_start(pos, motion.fps) :].min())
 
 
 def same_skeleton(a: Skeleton, b: Skeleton) -> bool:

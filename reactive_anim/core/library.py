@@ -13,13 +13,17 @@ The paper searches a library of reaction clips, narrowed to the class the networ
 
     [[chain]]                         # a clip reached only through `next` (a get-up): no class,
     file = "getup/getup_01.bvh"       # not searched; the bake plays it after the clip that names it
+    frames = [180, 560]               # optional, as for a clip: where the get-up starts and ends
 
 Without a library.toml, sub-folders named by class slug are read instead (`step_back/*.bvh`, ...).
 `load_library` also accepts the path of a .toml file anywhere (its `file` entries may be absolute),
 so a library can be described without writing into the folder that holds the clips.
 
 Compilation: each clip is read (bvh.py), given its joint roles (roles.py), resampled to the
-library's rate and turned into Eq. 1's per-frame features (window.frame_features). The arrays are
+library's rate and turned into Eq. 1's per-frame features (window.frame_features). A first frame
+that the take leaves faster than CALIBRATION_JUMP (a calibration or converter T-pose, as every CMU
+file opens with) is left out of every clip and chain, so it is never searched or played; each
+chained clip is read once to find the frames it plays, kept with the cache. The arrays are
 contiguous float32, grouped by class in CLASS_SLUGS order, then by clip in manifest order, with
 per-frame clip and frame indices; that order is the search's tie-break. The result is cached as an
 .npz named by a SHA-256 of the feature version, the settings, the manifest and every clip file's
@@ -56,7 +60,12 @@ from .window import FrameFeatures, frame_features
 
 MANIFEST_NAME = "library.toml"
 # Bump when the features or the cache layout change, so old caches are never read.
-FEATURE_VERSION = 2  # 2: each clip keeps its roles (a character on another skeleton needs them)
+# 2: each clip keeps its roles (a character on another skeleton needs them); 3: a calibration first
+# frame is left out of clips and chains, and the chains' frames are kept
+FEATURE_VERSION = 3
+# m/s: faster than a body's joints move in a take (the shared takes peak at 13); the shared files that
+# open on a calibration pose leave it at 77-172
+CALIBRATION_JUMP = 20.0
 DEFAULT_FPS = 30.0
 DEFAULT_WINDOW = 8
 
@@ -86,6 +95,15 @@ class ClipEntry:
     frames: tuple[int, int] | None = None
     next: str | None = None
     roles: tuple[tuple[str, str], ...] = ()
+
+
+@dataclass(frozen=True)
+class ChainEntry:
+    """One chained clip (a get-up) as the manifest gives it: reached only through a clip's `next`."""
+
+    name: str  # the manifest's `file` value, as `next` names it
+    path: Path
+    frames: tuple[int, int] | None = None
 
 
 @dataclass
@@ -149,6 +167,8 @@ class Library:
         self.cache_path: Path | None = None
         self.loaded_from_cache = False
         self.chains: dict[str, Path] = {}  # clips played only after another ([[chain]]): name -> file
+        # the BVH frames [start, stop) each chain plays (its `frames`, a calibration first frame left out)
+        self.chain_frames: dict[str, tuple[int, int]] = {}
         self._motions: dict[tuple[str, float], Motion] = {}
 
     @property
@@ -226,6 +246,11 @@ class Library:
             stop = min(motion.num_frames, info.source_start + int(np.floor(duration * motion.fps + 1e-6)) + 1)
             motion = motion.slice(info.source_start, stop)
             motion.skeleton.roles = dict(info.roles)  # as its features were computed (manifest overrides)
+        else:  # a chain: the frames found when the library was compiled (a library assembled by hand: found now)
+            frames = self.chain_frames.get(name) or used_frames(name, motion, None)
+            if frames[1] > motion.num_frames:
+                raise _entry_error(name, f"has {motion.num_frames} frames now, fewer than the library's {frames}")
+            motion = motion.slice(*frames)
         return motion if np.isclose(motion.fps, fps) else resample(motion, frame_times(motion, fps))
 
     def clip_start(self, clip_index: int) -> int:
@@ -305,13 +330,7 @@ def _read_toml(toml_path: Path) -> list[ClipEntry]:
         slug = item.get("class")
         if slug not in CLASS_SLUGS:
             raise _entry_error(name, f"unknown reaction class {slug!r}; classes are: {', '.join(CLASS_SLUGS)}")
-        frames = item.get("frames")
-        if frames is not None:
-            if not (isinstance(frames, list) and len(frames) == 2 and all(isinstance(v, int) for v in frames)):
-                raise _entry_error(name, f"frames must be [start, end] integers, got {frames!r}")
-            if not 0 <= frames[0] < frames[1]:
-                raise _entry_error(name, f"frames [{frames[0]}, {frames[1]}] is not a range (need 0 <= start < end)")
-            frames = (frames[0], frames[1])
+        frames = _frame_range(name, item.get("frames"))
         if name in names:
             raise _entry_error(name, f"listed twice in {toml_path}")
         names.add(name)
@@ -320,7 +339,7 @@ def _read_toml(toml_path: Path) -> list[ClipEntry]:
         if not isinstance(overrides, dict):
             raise _entry_error(name, f"roles must be a table of role = joint name, got {overrides!r}")
         entries.append(ClipEntry(name, path, slug, frames, item.get("next"), tuple(sorted(overrides.items()))))
-    chains = _chain_paths(toml_path, data)
+    chains = _chain_entries(toml_path, data)
     for entry in entries:
         if entry.next is not None and entry.next not in names and entry.next not in chains:
             raise _entry_error(
@@ -329,30 +348,58 @@ def _read_toml(toml_path: Path) -> list[ClipEntry]:
     return entries
 
 
-def _chain_paths(toml_path: Path, data: dict) -> dict[str, Path]:
-    """The [[chain]] tables: clips played only after another (get-ups), name -> existing path."""
+def _frame_range(name: str, frames: object) -> tuple[int, int] | None:
+    """An entry's `frames` ([start, end]: BVH frames, start inclusive, end exclusive) checked; errors
+    name the entry. (Past the file's end is checked when the file is read: used_frames.)"""
+    if frames is None:
+        return None
+    if not (isinstance(frames, list) and len(frames) == 2 and all(type(v) is int for v in frames)):
+        raise _entry_error(name, f"frames must be [start, end] integers, got {frames!r}")
+    if not 0 <= frames[0] < frames[1]:
+        raise _entry_error(name, f"frames [{frames[0]}, {frames[1]}] is not a range (need 0 <= start < end)")
+    return frames[0], frames[1]
+
+
+def _chain_entries(toml_path: Path, data: dict) -> dict[str, ChainEntry]:
+    """The [[chain]] tables: clips played only after another (get-ups), name -> entry (an existing
+    file, its optional frames checked as a clip's are)."""
     chains = data.get("chain", [])
     if not isinstance(chains, list):
         raise LibraryError(f"{toml_path}: 'chain' must be a list of [[chain]] tables")
     out = {}
     for k, item in enumerate(chains, 1):
         name = str(item.get("file", "")) if isinstance(item, dict) else ""
-        if not name or set(item) != {"file"}:
-            raise LibraryError(f"{toml_path}: [[chain]] number {k} must have exactly one key, 'file'")
+        if not name:
+            raise LibraryError(f"{toml_path}: [[chain]] number {k} has no 'file'")
+        unknown = set(item) - {"file", "frames"}
+        if unknown:
+            raise _entry_error(name, f"unknown keys {', '.join(sorted(unknown))} in [[chain]] of {toml_path}")
+        frames = _frame_range(name, item.get("frames"))
+        if name in out:
+            raise _entry_error(name, f"listed twice as a [[chain]] in {toml_path}")
         path = Path(name) if Path(name).is_absolute() else toml_path.parent / name
         if not path.is_file():
             raise _entry_error(name, f"file not found: {path}")
-        out[name] = path
+        out[name] = ChainEntry(name, path, frames)
     return out
+
+
+def read_chain_entries(source: str | Path) -> list[ChainEntry]:
+    """The chained clips (get-ups) a library's manifest lists, in manifest order."""
+    source = Path(source)
+    toml_path = source if source.suffix == ".toml" else source / MANIFEST_NAME
+    if not toml_path.is_file():
+        return []
+    try:
+        data = tomllib.loads(toml_path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise LibraryError(f"{toml_path}: not a valid TOML file: {exc}") from None
+    return list(_chain_entries(toml_path, data).values())
 
 
 def read_chains(source: str | Path) -> dict[str, Path]:
     """The chained clips (get-ups) a library's manifest lists, by the name `next` uses."""
-    source = Path(source)
-    toml_path = source if source.suffix == ".toml" else source / MANIFEST_NAME
-    if not toml_path.is_file():
-        return {}
-    return _chain_paths(toml_path, tomllib.loads(toml_path.read_text(encoding="utf-8")))
+    return {c.name: c.path for c in read_chain_entries(source)}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -390,11 +437,11 @@ def cache_key(
     entries: list[ClipEntry],
     settings: LibrarySettings,
     memo: dict[str, list] | None = None,
-    chains: dict[str, Path] | None = None,
+    chains: list[ChainEntry] | dict[str, Path] | None = None,
 ) -> str:
     """SHA-256 of the feature version, settings, manifest and every clip file's bytes, the chained
-    clips' (get-ups) included: a bake reads them too (their hashes memoised by size and mtime in
-    `memo`, which this updates)."""
+    clips' (get-ups) included with their frames: a bake reads them too (their hashes memoised by
+    size and mtime in `memo`, which this updates)."""
     memo = {} if memo is None else memo
     h = hashlib.sha256()
     h.update(json.dumps({"version": FEATURE_VERSION, "settings": asdict(settings)}, sort_keys=True).encode())
@@ -402,10 +449,32 @@ def cache_key(
         meta = {"name": e.name, "class": e.reaction_class, "frames": e.frames, "next": e.next, "roles": e.roles}
         h.update(json.dumps(meta, sort_keys=True).encode())
         h.update(_file_digest(e.name, e.path, memo).encode())
-    for name, path in sorted((chains or {}).items()):
-        h.update(json.dumps({"chain": name}).encode())
-        h.update(_file_digest(name, path, memo).encode())
+    if isinstance(chains, dict):
+        chains = [ChainEntry(name, path) for name, path in chains.items()]
+    for chain in sorted(chains or [], key=lambda c: c.name):
+        h.update(json.dumps({"chain": chain.name, "frames": chain.frames}).encode())
+        h.update(_file_digest(chain.name, chain.path, memo).encode())
     return h.hexdigest()
+
+
+def take_start(pos: np.ndarray, fps: float) -> int:
+    """1 when some joint leaves frame 0 (pos (T, J, 3), metres) faster than CALIBRATION_JUMP, else 0:
+    a first frame no body moves out of that fast is a calibration pose (CMU's converter T-pose, a
+    capture's), not the take."""
+    if len(pos) < 2:
+        return 0
+    return int(np.linalg.norm(pos[1] - pos[0], axis=-1).max() * fps > CALIBRATION_JUMP)
+
+
+def used_frames(name: str, motion: Motion, frames: tuple[int, int] | None) -> tuple[int, int]:
+    """The BVH frames [start, stop) an entry uses: its `frames` (all by default), less a calibration
+    first frame (take_start) when they start at the file's first. Errors name the entry."""
+    start, stop = frames or (0, motion.num_frames)
+    if stop > motion.num_frames:
+        raise _entry_error(name, f"frames [{start}, {stop}] run past the file's {motion.num_frames} frames")
+    if start == 0 and stop > 1:
+        start = take_start(motion.slice(0, 2).global_positions(), motion.fps)
+    return start, stop
 
 
 def compile_clip(entry: ClipEntry, settings: LibrarySettings) -> tuple[ClipInfo, FrameFeatures]:
@@ -420,9 +489,7 @@ def compile_clip(entry: ClipEntry, settings: LibrarySettings) -> tuple[ClipInfo,
         role_map = assign_roles(motion.skeleton, dict(entry.roles) or None)
     except SkeletonError as exc:
         raise _entry_error(entry.name, f"its skeleton lacks joint roles the search needs: {exc}") from None
-    start, stop = entry.frames or (0, motion.num_frames)
-    if stop > motion.num_frames:
-        raise _entry_error(entry.name, f"frames [{start}, {stop}] run past the file's {motion.num_frames} frames")
+    start, stop = used_frames(entry.name, motion, entry.frames)
     motion = motion.slice(start, stop)
     times = frame_times(motion, settings.fps)
     if len(times) < settings.window:
@@ -442,14 +509,31 @@ def compile_clip(entry: ClipEntry, settings: LibrarySettings) -> tuple[ClipInfo,
     return info, features
 
 
-def compile_library(entries: list[ClipEntry], settings: LibrarySettings) -> Library:
-    """Compile every clip (no cache)."""
-    return Library.concatenate([compile_clip(e, settings) for e in entries], settings)
+def compile_chain(entry: ChainEntry, settings: LibrarySettings) -> tuple[int, int]:
+    """The BVH frames [start, stop) a chained clip plays (used_frames); errors name the clip."""
+    try:
+        motion = bvh.read_bvh(entry.path, unit=settings.unit, up=settings.up)
+    except FileNotFoundError:
+        raise _entry_error(entry.name, f"file not found: {entry.path}") from None
+    except BVHError as exc:
+        raise _entry_error(entry.name, str(exc)) from None
+    return used_frames(entry.name, motion, entry.frames)
+
+
+def compile_library(
+    entries: list[ClipEntry], settings: LibrarySettings, chains: list[ChainEntry] | None = None
+) -> Library:
+    """Compile every clip and chain (no cache)."""
+    library = Library.concatenate([compile_clip(e, settings) for e in entries], settings)
+    library.chains = {c.name: c.path for c in chains or []}
+    library.chain_frames = {c.name: compile_chain(c, settings) for c in chains or []}
+    return library
 
 
 def _save(library: Library, path: Path, key: str) -> None:
     meta = {"key": key, "settings": asdict(library.settings), "clips": [
-        {k: v for k, v in vars(c).items() if not k.startswith("_")} for c in library.clips]}  # fmt: skip
+        {k: v for k, v in vars(c).items() if not k.startswith("_")} for c in library.clips],
+        "chain_frames": {name: list(frames) for name, frames in library.chain_frames.items()}}  # fmt: skip
     _save_arrays(
         path, meta=np.array(json.dumps(meta)), pos_local=library.pos_local, heading=library.heading,
         ground=library.ground, rot=library.rot, clip_index=library.clip_index, frame_index=library.frame_index,
@@ -473,7 +557,9 @@ def _load(path: Path, key: str) -> Library | None:
             clips = [ClipInfo(**c) for c in meta["clips"]]
             frames = FrameFeatures(data["pos_local"], data["heading"], data["ground"], data["rot"])
             settings = LibrarySettings(**meta["settings"])
-            return Library(clips, settings, frames, data["clip_index"], data["frame_index"])
+            library = Library(clips, settings, frames, data["clip_index"], data["frame_index"])
+            library.chain_frames = {name: (int(a), int(b)) for name, (a, b) in meta["chain_frames"].items()}
+            return library
     except (OSError, ValueError, KeyError, TypeError):
         return None  # a missing or damaged cache is compiled afresh
 
@@ -506,11 +592,9 @@ def load_library(
     if settings.window < 1 or not settings.fps > 0:
         raise LibraryError(f"library settings need window >= 1 and fps > 0, got {settings}")
     entries = read_manifest(source)
-    chains = read_chains(source)
+    chains = read_chain_entries(source)
     if not cache:
-        library = compile_library(entries, settings)
-        library.chains = chains
-        return library
+        return compile_library(entries, settings, chains)
     cache_dir = Path(cache_dir) if cache_dir is not None else default_cache_dir(source)
     memo_path = cache_dir / "file-hashes.json"
     try:
@@ -527,11 +611,11 @@ def load_library(
     if library is not None:
         library.loaded_from_cache = True
     else:
-        library = compile_library(entries, settings)
+        library = compile_library(entries, settings, chains)
         if not _try_write(_save, library, path, key):
             path = None
     library.cache_path = path
-    library.chains = chains
+    library.chains = {c.name: c.path for c in chains}
     return library
 
 

@@ -20,6 +20,14 @@ What we add beyond the paper, and why:
   walker who stumbles walks on. A reaction that ends lying down holds its last pose.
 - Several impacts: each starts from the motion as already reacted at its frame (Fig. 4), so a hit
   that lands during an earlier reaction reacts from that reaction.
+- A class the library lacks (a library of real falls and get-ups has no steps): the push is judged
+  by the outcome rule (outcome.py, the classifier's own labels). A push that keeps its feet never
+  gets a fall: it plays the nearest class the library has that keeps them (NEAR: the same way, more
+  or fewer steps, a sway), and with none of those it keeps the motion it was playing: BC's hit,
+  then CD tracks back to that motion and fades into it by F, from where it plays on unchanged
+  (Reaction.kept_motion; its path and timing stay the animator's, later markers land where they
+  were put). A push the rule says falls searches the probable classes the library
+  has, as before. Either way Reaction.note says what the library lacked and what was done.
 - Feet: where the sources cross-fade (C..F, a get-up fading in, the resume), a planted foot keeps
   its footprint instead of sliding from one source's to the other's, and feet and hands that a
   fade or a cast clip puts through the floor are lifted onto it (footing.py).
@@ -46,7 +54,7 @@ from .features import Body, FeatureReader
 from .footing import hold_feet
 from .impact import Impact
 from .library import Library
-from .outcome import collapsing, judge
+from .outcome import Outcome, collapsing, judge
 from .ragdoll import Ragdoll, build_ragdoll
 from .search import Match, search, search_with_fallback
 from .simulate import SimResult, Workspace, simulate_impact, track
@@ -62,6 +70,18 @@ from .window import (
 )
 
 STILL_KEPT = 0.5  # s of a clip's still tail played before the motion resumes or a get-up begins
+# The classes that keep the feet nearest each, nearest first, for a push that keeps its feet whose
+# class the library lacks: the same way with more or fewer steps, then a sway. Not a step the other
+# way (a push from behind does not step back), nor a step for a sway (more than the push called for):
+# with none of them in the library the motion is kept, the hit simulated (Reaction.kept_motion).
+NEAR: dict[str, tuple[str, ...]] = {
+    "step_forward": ("steps_forward", "sway_balance"),
+    "steps_forward": ("step_forward", "sway_balance"),
+    "step_back": ("steps_back", "sway_balance"),
+    "steps_back": ("step_back", "sway_balance"),
+    "sway_balance": (),
+}
+KEPT_CLIP = "(the original motion)"  # Reaction.clip when the motion was kept
 
 
 @dataclass(frozen=True)
@@ -76,7 +96,8 @@ class ReactionSettings:
       anyway, marked not accepted (search_with_fallback) [40.0: the sample library's matches of
       pushed walks cost 10-40].
     min_probability: classes less probable than this are not searched, unless none that likely is
-      in the library (then its most probable class) or the body is going down (the falls) [0.1].
+      in the library (then its most probable class; but a push that keeps its feet gets no fall
+      when the library lacks its class: NEAR) or the body is going down (the falls) [0.1].
     resume: after a reaction that ends standing, resume the original motion [True].
     chain_blend: seconds over which a chained get-up fades in where the fall ends [0.2].
     assist: the root assist that keeps the body up during CD (balance.py), None for the paper's
@@ -119,6 +140,11 @@ class Reaction:
       which it resumed (None: held the last pose, or resume off).
     going_down: the body was already down or going down at C, so the search looked among the falls,
       the outcome rule's first (_going_down), rather than at the classifier's choice.
+    note: for the animator, why the reaction is not what the push called for (the library lacks
+      its class: what it played instead, or that it kept the motion); empty when it is.
+    kept_motion: no clip was played: the push keeps its feet and the library has no class that does
+      (NEAR), so CD tracked back to the motion, which plays on unchanged from F (clip KEPT_CLIP,
+      cost 0, no placement).
     timings: seconds per step (bc, classify, search, cd, blend, splice, total).
     """
 
@@ -139,6 +165,8 @@ class Reaction:
     chained: str | None
     resumed_at: int | None
     going_down: bool = False
+    note: str = ""
+    kept_motion: bool = False
     timings: dict[str, float] = field(default_factory=dict)
     motion: Motion | None = field(default=None, repr=False)
 
@@ -202,15 +230,22 @@ def react(
     falling = None if impact.reaction is not None else _going_down(motion, bc, ragdoll, impact, library)
     clock.lap("classify")
     query = _query_ending_at(before, frame_c, casting, impact)
-    match = _search(library, query, impact, probabilities, settings, falling)
+    choice = _search(library, query, impact, probabilities, settings, falling,
+                     lambda: _judge(motion, bc, ragdoll, impact))  # fmt: skip
+    match = choice.match
     clock.lap("search")
-    clip_raw = casting.clip(match.clip, motion.fps)
-    # E: the window's last frame on the character's clock (a clip resampled to a frame rate such as
-    # 59.9988 may end a frame short of the rounded time)
-    frame_e = min(round((match.jump_frame + library.window - 1) / library.fps * motion.fps), clip_raw.num_frames - 1)
-    at_c = before.slice(frame_c, frame_c + 1)
-    placement = _alignment(at_c, clip_raw.slice(frame_e, frame_e + 1), ragdoll.roles)
-    clip = place(clip_raw, *placement)
+    if match is None:  # the motion kept: the "clip" is the motion where it is, jumped into at C
+        clip, frame_e, placement = motion, frame_c, (0.0, (0.0, 0.0))
+    else:
+        clip_raw = casting.clip(match.clip, motion.fps)
+        # E: the window's last frame on the character's clock (a clip resampled to a frame rate such
+        # as 59.9988 may end a frame short of the rounded time)
+        frame_e = min(
+            round((match.jump_frame + library.window - 1) / library.fps * motion.fps), clip_raw.num_frames - 1
+        )
+        at_c = before.slice(frame_c, frame_c + 1)
+        placement = _alignment(at_c, clip_raw.slice(frame_e, frame_e + 1), ragdoll.roles)
+        clip = place(clip_raw, *placement)
     steps = max(1, round(settings.transition * motion.fps))
     clip_ef = _frames(clip, frame_e, steps + 1)  # E..F; a clip that ends sooner holds its last pose
     # theta_blend: what the character was playing (an earlier reaction, if one plays) faded into the clip.
@@ -218,19 +253,25 @@ def react(
     cd = track(ragdoll, bc.state, target, steps / motion.fps, assist=settings.assist, workspace=workspace)
     clock.lap("cd")
     transition = blend(cd.motion, clip_ef, fade_weights(steps + 1))
-    stop = max(frame_e + steps + 1, _still_from(library, match.clip_index, motion.fps))
-    out = _join(before.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, min(stop, clip.num_frames)))
-    clock.lap("blend")
-    out, chained, chain_fade = _chain(out, casting, match, ragdoll.roles, settings)
-    end_frame = out.num_frames - 1
-    standing = chained is not None or not match.reaction_class.startswith("fall_")
-    window = max(2, round(library.window * motion.fps / library.fps)) if settings.resume and standing else 0
-    out, resumed_at, resume_fade = _resume_or_hold(out, source or motion, int(np.ceil(impact.frame)), window,
-                                                   ragdoll.roles)  # fmt: skip
+    if match is None:  # the motion plays on from F; the reaction ends there
+        out = _join(before.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, clip.num_frames))
+        clock.lap("blend")
+        chained, chain_fade, end_frame = None, [], min(frame_c + steps, out.num_frames - 1)
+        out, resumed_at, resume_fade = _resume_or_hold(out, source or motion, 0, 0, ragdoll.roles)
+    else:
+        stop = max(frame_e + steps + 1, _still_from(library, match.clip_index, motion.fps))
+        out = _join(before.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, min(stop, clip.num_frames)))
+        clock.lap("blend")
+        out, chained, chain_fade = _chain(out, casting, match, ragdoll.roles, settings)
+        end_frame = out.num_frames - 1
+        standing = chained is not None or not match.reaction_class.startswith("fall_")
+        window = max(2, round(library.window * motion.fps / library.fps)) if settings.resume and standing else 0
+        out, resumed_at, resume_fade = _resume_or_hold(out, source or motion, int(np.ceil(impact.frame)), window,
+                                                       ragdoll.roles)  # fmt: skip
     if settings.hold_feet:
         fades = [(frame_c, frame_c + steps + 1), *chain_fade, *resume_fade]
         # B's own pose stays; a held last pose (a fall with nothing chained) is held lifted as it ends
-        last = end_frame + 1 if resumed_at is not None else out.num_frames
+        last = end_frame + 1 if resumed_at is not None or match is None else out.num_frames
         out = hold_feet(out, ragdoll.roles, (int(np.ceil(impact.frame)) + 1, last), fades, casting.sole)
     ground_root = static_root(source or motion)
     if ground_root is not None:
@@ -246,16 +287,18 @@ def react(
         if probabilities is not None
         else {},
         predicted=impact.reaction or (None if probabilities is None else CLASS_SLUGS[int(np.argmax(probabilities))]),
-        scope=match.scope,
-        reaction_class=match.reaction_class,
-        clip=match.clip,
-        jump_frame=match.jump_frame,
-        cost=match.cost,
-        accepted=match.accepted,
+        scope=match.scope if match is not None else "none",
+        reaction_class=match.reaction_class if match is not None else choice.kept_class,
+        clip=match.clip if match is not None else KEPT_CLIP,
+        jump_frame=match.jump_frame if match is not None else 0,
+        cost=match.cost if match is not None else 0.0,
+        accepted=match.accepted if match is not None else True,
         placement=placement,
         chained=chained,
         resumed_at=resumed_at,
         going_down=falling is not None,
+        note=choice.note,
+        kept_motion=match is None,
         timings=clock.total(),
         motion=out,
     )
@@ -369,6 +412,16 @@ def _query_ending_at(before: Motion, frame_c: int, casting: Casting, impact: Imp
     return casting.query(before, start)
 
 
+@dataclass(frozen=True)
+class _Choice:
+    """What the search chose: a match, or None to keep the motion (then kept_class is the class the
+    push calls for); note: for the animator, what the library lacked and what was done instead."""
+
+    match: Match | None
+    note: str = ""
+    kept_class: str = ""
+
+
 def _search(
     library: Library,
     query: Query,
@@ -376,18 +429,28 @@ def _search(
     probabilities: np.ndarray | None,
     settings: ReactionSettings,
     falling: str | None = None,
-) -> Match:
+    rule: Callable[[], Outcome] | None = None,
+) -> _Choice:
     """The override's class alone; a body going down, the rule's fall and then the other falls; else
-    the probable classes in order (search_with_fallback)."""
+    the probable classes in order (search_with_fallback). When the library lacks the predicted class
+    (or, with no classifier, has only falls), `rule` (the outcome rule's verdict, asked only then)
+    decides: see _missing_class."""
     if impact.reaction is not None:
-        return search(library, query, [impact.reaction], settings.search_threshold)
+        return _Choice(search(library, query, [impact.reaction], settings.search_threshold))
     ranked = range(len(CLASS_SLUGS)) if probabilities is None else np.argsort(-probabilities, kind="stable")
     order = [CLASS_SLUGS[k] for k in ranked]
     if falling is not None:
         falls = [falling] + [slug for slug in order if slug.startswith("fall_") and slug != falling]
-        return search_with_fallback(library, query, falls, settings.search_threshold)
+        return _Choice(search_with_fallback(library, query, falls, settings.search_threshold))
+    predicted = None if probabilities is None else order[0]
+    have = library.class_ranges
+    missing = predicted not in have if predicted is not None else not any(not _is_fall(s) for s in have)
+    if missing and rule is not None:
+        choice = _missing_class(library, query, predicted, rule(), settings)
+        if choice is not None:
+            return choice
     if probabilities is None:
-        return search(library, query, None, settings.search_threshold)
+        return _Choice(search(library, query, None, settings.search_threshold))
     likely = [
         slug for slug, p in zip(order, np.sort(probabilities)[::-1], strict=True) if p >= settings.min_probability
     ]
@@ -395,7 +458,37 @@ def _search(
         likely = [slug for slug in order if slug in library.class_ranges][:1]
     if not likely:
         raise LibraryError("the library has no usable class for this reaction")
-    return search_with_fallback(library, query, likely, settings.search_threshold)
+    match = search_with_fallback(library, query, likely, settings.search_threshold)
+    note = f"the library has no {predicted} clips: played {match.reaction_class} instead" if missing else ""
+    return _Choice(match, note)
+
+
+def _missing_class(
+    library: Library, query: Query, predicted: str | None, verdict: Outcome, settings: ReactionSettings
+) -> _Choice | None:
+    """A push whose class the library lacks: when the outcome rule says it keeps its feet, the
+    nearest class the library has that keeps them (NEAR, from the class the push calls for: the
+    classifier's, or the rule's when the classifier says fall), else the motion kept. None when the
+    rule says it falls (the probable classes the library has are searched, as before)."""
+    if verdict.steps is None:  # the rule says it falls: any fall the library has will do
+        return None
+    wanted = predicted if predicted is not None and not _is_fall(predicted) else verdict.reaction
+    near = list(dict.fromkeys([wanted, *NEAR[wanted], verdict.reaction, *NEAR[verdict.reaction]]))
+    usable = [slug for slug in near if slug in library.class_ranges]
+    why = "the push does not fell the character"
+    if usable:
+        match = search_with_fallback(library, query, usable, settings.search_threshold)
+        lacks = predicted or "step or sway"
+        return _Choice(match, f"the library has no {lacks} clips: played {match.reaction_class}, the nearest it "
+                              f"has that keeps the feet ({why})")  # fmt: skip
+    standing = [slug for slug in library.class_ranges if not _is_fall(slug)]
+    lacks = (", ".join(near[:-1]) + " or " if len(near) > 1 else "") + near[-1] if standing else "step or sway"
+    return _Choice(None, f"the library has no {lacks} clips: kept the original motion, the hit simulated "
+                         f"({why})", wanted)  # fmt: skip
+
+
+def _is_fall(slug: str) -> bool:
+    return slug.startswith("fall_")
 
 
 def _going_down(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact, library: Library) -> str | None:
@@ -412,8 +505,13 @@ def _going_down(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact,
     on_floor = np.delete(bc.contacts[-1], foot_bodies(ragdoll)).any()
     if not (on_floor or collapsing(body, bc.com[-1], bc.com_velocity[-1], bc.floor)):
         return None
+    return _judge(motion, bc, ragdoll, impact).reaction
+
+
+def _judge(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact) -> Outcome:
+    """The outcome rule's verdict on the simulated state at C (outcome.judge)."""
     reader = FeatureReader(ragdoll)
-    return judge(body, reader.simulated(motion, bc), (bc.frames[-1] - impact.frame) / motion.fps).reaction
+    return judge(reader.body, reader.simulated(motion, bc), (bc.frames[-1] - impact.frame) / motion.fps)
 
 
 def _chain(

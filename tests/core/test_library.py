@@ -15,7 +15,15 @@ from reactive_anim.core import bvh, quat
 from reactive_anim.core import library as library_module
 from reactive_anim.core.classes import CLASS_SLUGS
 from reactive_anim.core.errors import LibraryError
-from reactive_anim.core.library import LibrarySettings, load_library, read_chains, read_manifest
+from reactive_anim.core.library import (
+    Library,
+    LibrarySettings,
+    compile_clip,
+    load_library,
+    read_chain_entries,
+    read_chains,
+    read_manifest,
+)
 from reactive_anim.core.search import search
 from reactive_anim.core.skeleton import Motion, Skeleton
 from reactive_anim.core.window import Query
@@ -305,3 +313,115 @@ def test_a_library_builds_its_search_index_once(small_library: Path, tmp_path: P
 
     monkeypatch.setattr(library_module, "build_index", no_rebuild)
     assert search(lib, query) == first
+
+
+# ---------------------------------------------------------------------------------------------
+# Chains take frames; a calibration first frame is never searched or played
+
+
+def _write_manifest(folder: Path, clips: list[str], chains: list[str]) -> Path:
+    """A library.toml of [[clip]] and [[chain]] tables given as TOML bodies."""
+    text = "".join(f"[[clip]]\n{body}\n\n" for body in clips) + "".join(f"[[chain]]\n{body}\n\n" for body in chains)
+    path = folder / "library.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def _opening_on_a_calibration_pose(path: Path, seed: int, drop: float = 0.8) -> Motion:
+    """A clip whose first frame is a calibration pose: every joint at rest (a T-pose) and `drop`
+    metres lower, as CMU's converter frames are; the take follows. Written to `path`; returns the
+    take (what must be played)."""
+    make_clip(path, seed, 61, 30.0)
+    take = bvh.read_bvh(path)
+    rest = quat.identity((1, take.skeleton.num_joints))
+    local_pos = None if take.local_pos is None else take.local_pos[:1]
+    pose = Motion(take.skeleton, take.fps, take.root_pos[:1] - np.array([0.0, 0.0, drop]), rest, local_pos)
+    bvh.write_bvh(path, pose.concat(take))
+    return take
+
+
+def test_a_chain_takes_frames_like_a_clip(tmp_path: Path) -> None:
+    """`[[chain]] frames = [start, end]` (BVH frames, end exclusive, as a clip's): the get-up plays
+    those frames only; they are part of the cache key and kept with the cache."""
+    make_clip(tmp_path / "fall.bvh", 1, 60, 30.0)
+    make_clip(tmp_path / "getup.bvh", 2, 60, 30.0)
+    _write_manifest(tmp_path, ['file = "fall.bvh"\nclass = "fall_backward_sit"\nnext = "getup.bvh"'],
+                    ['file = "getup.bvh"\nframes = [12, 50]'])  # fmt: skip
+    lib = load_library(tmp_path, cache_dir=tmp_path / "cache")
+    assert [(c.name, c.frames) for c in read_chain_entries(tmp_path)] == [("getup.bvh", (12, 50))]
+    assert lib.chain_frames == {"getup.bvh": (12, 50)}
+    played, file = lib.clip_motion("getup.bvh", 30.0), bvh.read_bvh(tmp_path / "getup.bvh")
+    assert np.array_equal(played.root_pos, file.root_pos[12:50])
+    assert np.array_equal(played.local_rot, file.local_rot[12:50])
+    cached = load_library(tmp_path, cache_dir=tmp_path / "cache")
+    assert cached.loaded_from_cache and cached.chain_frames == lib.chain_frames
+    assert np.array_equal(cached.clip_motion("getup.bvh", 30.0).local_rot, played.local_rot)
+    _write_manifest(tmp_path, ['file = "fall.bvh"\nclass = "fall_backward_sit"\nnext = "getup.bvh"'],
+                    ['file = "getup.bvh"\nframes = [20, 50]'])  # fmt: skip
+    moved = load_library(tmp_path, cache_dir=tmp_path / "cache")
+    assert not moved.loaded_from_cache and moved.chain_frames == {"getup.bvh": (20, 50)}
+    assert np.array_equal(moved.clip_motion("getup.bvh", 30.0).root_pos, file.root_pos[20:50])
+
+
+@pytest.mark.parametrize(
+    ("chain", "message"),
+    [
+        ("frames = [5, 2]", r"clip 'getup\.bvh': frames \[5, 2\] is not a range"),
+        ("frames = [0, 500]", r"clip 'getup\.bvh': frames \[0, 500\] run past the file's 60 frames"),
+        ("frames = [1.5, 30]", r"clip 'getup\.bvh': frames must be \[start, end\] integers"),
+        ("frames = [3]", r"clip 'getup\.bvh': frames must be \[start, end\] integers"),
+        ("speed = 2", r"clip 'getup\.bvh': unknown keys speed in \[\[chain\]\] of .*library\.toml"),
+    ],
+)
+def test_a_chains_frames_are_checked_as_a_clips_and_errors_name_it(tmp_path: Path, chain: str, message: str) -> None:
+    make_clip(tmp_path / "fall.bvh", 1, 60, 30.0)
+    make_clip(tmp_path / "getup.bvh", 2, 60, 30.0)
+    _write_manifest(tmp_path, ['file = "fall.bvh"\nclass = "fall_backward_sit"\nnext = "getup.bvh"'],
+                    [f'file = "getup.bvh"\n{chain}'])  # fmt: skip
+    with pytest.raises(LibraryError, match=message):
+        load_library(tmp_path, cache_dir=tmp_path / "cache")
+
+
+def test_a_calibration_first_frame_is_never_searched_or_played(tmp_path: Path) -> None:
+    """A clip and a chain whose first frame is a calibration pose (0.8 m in a frame: 24 m/s, over
+    the 20 m/s of library.take_start, the rule casting.py reads a character's floor by): the
+    library compiles them from their second frame, exactly as if `frames` said so, and the bake
+    reads them from there. A first frame left at a walking pace stays (5 cm lower: 1.5 m/s)."""
+    fall = _opening_on_a_calibration_pose(tmp_path / "fall.bvh", 1)
+    getup = _opening_on_a_calibration_pose(tmp_path / "getup.bvh", 2)
+    _opening_on_a_calibration_pose(tmp_path / "stepped.bvh", 3, drop=0.05)
+    _write_manifest(tmp_path, ['file = "fall.bvh"\nclass = "fall_backward_sit"\nnext = "getup.bvh"',
+                               'file = "stepped.bvh"\nclass = "step_back"'], ['file = "getup.bvh"'])  # fmt: skip
+    lib = load_library(tmp_path, cache_dir=tmp_path / "cache")
+    assert lib.clip("fall.bvh").source_start == 1 and lib.clip("stepped.bvh").source_start == 0
+    assert lib.chain_frames == {"getup.bvh": (1, 62)}
+    for name, take in (("fall.bvh", fall), ("getup.bvh", getup)):
+        played = lib.clip_motion(name, 30.0)
+        assert np.array_equal(played.root_pos, take.root_pos) and np.array_equal(played.local_rot, take.local_rot)
+    # Searched from frame 1: the features are those of the same file listed from its frame 1.
+    listed = tmp_path / "listed"
+    listed.mkdir()
+    _write_manifest(listed, [f'file = "{tmp_path / "fall.bvh"}"\nclass = "fall_backward_sit"\nframes = [1, 62]'], [])
+    reference = load_library(listed, cache_dir=tmp_path / "cache")
+    a, b = lib.class_ranges["fall_backward_sit"]
+    assert np.array_equal(lib.pos_local[a:b], reference.pos_local) and np.array_equal(lib.rot[a:b], reference.rot)
+    # `frames` from the file's first frame drop it too; from a later frame nothing is dropped.
+    _write_manifest(tmp_path, ['file = "fall.bvh"\nclass = "fall_backward_sit"\nframes = [0, 40]'],
+                    ['file = "getup.bvh"\nframes = [0, 30]'])  # fmt: skip
+    cut = load_library(tmp_path, cache_dir=tmp_path / "cache")
+    assert cut.clip("fall.bvh").source_start == 1 and cut.chain_frames == {"getup.bvh": (1, 30)}
+    _write_manifest(tmp_path, ['file = "fall.bvh"\nclass = "fall_backward_sit"\nframes = [3, 40]'],
+                    ['file = "getup.bvh"\nframes = [3, 30]'])  # fmt: skip
+    later = load_library(tmp_path, cache_dir=tmp_path / "cache")
+    assert later.clip("fall.bvh").source_start == 3 and later.chain_frames == {"getup.bvh": (3, 30)}
+
+
+def test_a_library_assembled_by_hand_plays_its_chains_without_the_calibration_frame(tmp_path: Path) -> None:
+    """A Library made from compiled clips (benchmarks do) and given chains afterwards finds a
+    chain's frames when the bake first reads it, by the same rule."""
+    make_clip(tmp_path / "fall.bvh", 1, 60, 30.0)
+    getup = _opening_on_a_calibration_pose(tmp_path / "getup.bvh", 2)
+    entry = read_manifest(write_toml(tmp_path, [{"file": "fall.bvh", "class": "fall_backward_sit"}]))[0]
+    lib = Library.concatenate([compile_clip(entry, LibrarySettings())], LibrarySettings())
+    lib.chains = {"getup.bvh": tmp_path / "getup.bvh"}
+    assert np.array_equal(lib.clip_motion("getup.bvh", 30.0).root_pos, getup.root_pos)
