@@ -3,6 +3,7 @@
 
     .venv/bpy-5.0/bin/python tools/bench.py            # everything
     .venv/bpy-5.0/bin/python tools/bench.py bvh        # some groups: bvh, blender, sim, search
+    .venv/core/bin/python tools/bench.py quality --full    # believability, every shared take
 
 The benchmarks are the package tools/benchmarks (this script runs its main; `python -m
 tools.benchmarks` from the repository root does the same). Real mocap comes from ../shared/mocap

@@ -3,11 +3,14 @@
     .venv/bpy-5.0/bin/python tools/bench.py                 # everything
     .venv/bpy-5.0/bin/python tools/bench.py bvh sim         # some groups only
     .venv/bpy-5.0/bin/python -m tools.benchmarks search     # the same, as a module
+    .venv/core/bin/python tools/bench.py quality --full     # believability on every shared take
 
 Groups: bvh (parse throughput), blender (import, read_motion, write_motion in bpy), sim (ragdoll
 build, step, BC and CD windows), search (the jump search against the reference), react (the reaction
 pipeline per impact and a 20-impact bake), cast (search costs on other skeletons, retarget time),
-sweep (random pushes baked on every shared file: failures, pops, time). Real mocap comes from
+sweep (random pushes baked on every shared file: failures, pops, time), quality (believability:
+pushes on the shared walks, runs and idles measured against real capture; a sample of takes, every
+one with --full; contact sheets of the worst in out/quality). Real mocap comes from
 ../shared/mocap (test and benchmark data only); a group that needs it is skipped with a note where
 it is absent. Each timing is the best of several runs (the least disturbed by other work on the
 machine), with the run count printed beside it."""
@@ -17,6 +20,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable
 
+from . import quality
 from .blender import bench_blender
 from .bvh import bench_bvh
 from .casting import bench_casting
@@ -34,16 +38,20 @@ GROUPS: dict[str, Callable[[], None]] = {
     "react": bench_react,
     "cast": bench_casting,
     "sweep": bench_sweep,
+    "quality": quality.bench_quality,
 }
+FLAGS = {"--full": "quality: push every shared walk, run and idle, not the sample"}
 
 
 def main(argv: list[str]) -> int:
-    """Run the named groups (all by default) and print the table; 2 for an unknown group."""
-    chosen = argv or list(GROUPS)
-    unknown = [g for g in chosen if g not in GROUPS]
+    """Run the named groups (all by default) and print the table; 2 for an unknown group or flag."""
+    flags = [a for a in argv if a.startswith("--")]
+    chosen = [a for a in argv if not a.startswith("--")] or list(GROUPS)
+    unknown = [g for g in chosen if g not in GROUPS] + [f for f in flags if f not in FLAGS]
     if unknown:
-        print(f"unknown group(s) {unknown}; choose from {list(GROUPS)}", file=sys.stderr)
+        print(f"unknown group(s) or flag(s) {unknown}; choose from {list(GROUPS)} and {FLAGS}", file=sys.stderr)
         return 2
+    quality.FULL = "--full" in flags
     for group in chosen:
         GROUPS[group]()
     print_table()
