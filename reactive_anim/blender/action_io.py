@@ -15,11 +15,18 @@ every bone inheriting its parent's rotation, unit scale), it is writing inverted
 F-curves in numpy: L_j = B_j @ basis_j @ B_j^-1, basis_j the bone's rotation channels (quaternion,
 Euler in the bone's order, or axis-angle), and local_pos_j = rest_offset_j + object_scale B_j
 location_j (a connected bone's location ignored, as Blender ignores it). Otherwise Blender evaluates
-the armature frame by frame (constraints, drivers and all) and the evaluated pose is read. Both give
-the same motion to float precision (tests/blender/test_read_motion_fast.py).
+the armature frame by frame (constraints, drivers and all) and the evaluated pose is read, without
+the bones' scale (not part of the motion: a bake carries it). Both give the same motion to float
+precision (tests/blender/test_read_motion_fast.py).
+
+Writing a bake's result carries the source action along: every channel the motion does not decide
+(object keys, bone custom properties, bone scale, bones outside the skeleton) is copied into the new
+action with its keys and settings, so the new action plays exactly like the source wherever the
+motion agrees with it (`write_motion`'s carry_from).
 
 Blender has three live action APIs; they differ in where F-curves live, which `_fcurve_factory`
-(writing) and `_playing_fcurves` (reading) hide, chosen by feature detection:
+(writing) and `_slot_fcurves` (reading, for `_playing_fcurves` and the channels a write carries)
+hide, chosen by feature detection:
 - 4.2: `action.fcurves`, `fcurves.new(data_path, index, action_group=...)`;
 - 4.4/4.5: layered actions (slot, layer, keyframe strip, channelbag); `fcurves.new` takes no group
   name, so groups are made with `channelbag.groups.new` and assigned;
@@ -28,8 +35,9 @@ Blender has three live action APIs; they differ in where F-curves live, which `_
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from typing import Any, cast
 
 import bpy
@@ -243,7 +251,8 @@ def _evaluated_pose(
     armature: bpy.types.Object, bones: list[bpy.types.Bone], frames: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Armature-space heads (T, J, 3) and orientations (T, J, 4) as Blender evaluates them, one
-    scene update and one bulk read of the pose matrices per frame."""
+    scene update and one bulk read of the pose matrices per frame; without the bones' scale
+    (`_without_bone_scale`)."""
     scene = bpy.context.scene
     pose_bones = armature.pose.bones
     order = np.array([pose_bones.find(b.name) for b in bones])
@@ -254,7 +263,37 @@ def _evaluated_pose(
         # foreach_get returns each matrix column-major (ignore: an ndarray is a buffer, see _set_keys)
         pose_bones.foreach_get("matrix", buffer)  # pyright: ignore[reportArgumentType]
         matrices[t] = buffer.reshape(-1, 4, 4).transpose(0, 2, 1)[order]
-    return matrices[..., :3, 3], quat.from_matrix(_orthonormal(matrices[..., :3, :3]))
+    heads, rotations = _without_bone_scale(matrices, bones)
+    return heads, quat.from_matrix(rotations)
+
+
+BONE_SCALE_TOLERANCE = 1e-5  # float32 pose matrices: an axis longer or shorter than this is scaled
+
+
+def _without_bone_scale(matrices: np.ndarray, bones: list[bpy.types.Bone]) -> tuple[np.ndarray, np.ndarray]:
+    """Heads (T, J, 3) and orientations (T, J, 3, 3) of armature-space pose matrices (T, J, 4, 4)
+    as the bones would have them unscaled: each bone placed and turned in its parent's unscaled axes
+    as it is in the parent's scaled ones.
+
+    A bone's scale is not part of the motion: a bake carries its keys into the reacted action
+    (write_motion), where Blender applies it again. Left in the pose, the offsets a scaled bone
+    stretches would become location keys, and a non-uniform scale would shear its children's
+    orientations into the rotation keys: both scaled a second time. The heads and orientations are
+    Blender's own where no bone is scaled.
+    """
+    heads, axes = matrices[..., :3, 3], matrices[..., :3, :3]
+    rotations = _orthonormal(axes)  # a bone's own scale lies along its axes: their lengths
+    if np.abs(np.linalg.norm(axes, axis=-2) - 1.0).max(initial=0.0) <= BONE_SCALE_TOLERANCE:
+        return heads, rotations
+    index = {b.name: j for j, b in enumerate(bones)}
+    unscaled = heads.copy()
+    for j, bone in enumerate(bones[1:], start=1):  # parents first
+        p = index[cast(bpy.types.Bone, bone.parent).name]
+        inverse = np.linalg.inv(axes[:, p])  # into the parent's scaled axes
+        offset = inverse @ (heads[:, j] - heads[:, p])[..., None]
+        unscaled[:, j] = unscaled[:, p] + (rotations[:, p] @ offset)[..., 0]
+        rotations[:, j] = rotations[:, p] @ _orthonormal(inverse @ axes[:, j])
+    return unscaled, rotations
 
 
 def _motion_from_pose(
@@ -367,9 +406,17 @@ def _playing_fcurves(armature: bpy.types.Object) -> list[bpy.types.FCurve] | Non
         return []
     if not hasattr(action, "layers"):  # 4.2: legacy actions
         return list(action.fcurves)
-    layers, slot = _since_4_4(action).layers, _since_4_4(adt).action_slot
+    layers = _since_4_4(action).layers
     if len(layers) > 1 or any(len(layer.strips) > 1 for layer in layers):
         return None
+    return _slot_fcurves(action, _since_4_4(adt).action_slot)
+
+
+def _slot_fcurves(action: bpy.types.Action, slot: Any) -> list[bpy.types.FCurve]:
+    """The F-curves of `action` for `slot` (Blender 4.4+; None: none), or all of a 4.2 action."""
+    if not hasattr(action, "layers"):  # 4.2: legacy actions
+        return list(action.fcurves)
+    layers = _since_4_4(action).layers
     bags = [strip.channelbag(slot) for layer in layers for strip in layer.strips] if slot is not None else []
     return [fcurve for bag in bags if bag is not None for fcurve in bag.fcurves]
 
@@ -446,12 +493,28 @@ def _basis_rotations(modes: list[str], channels: dict[str, np.ndarray]) -> np.nd
 # Writing
 
 
-def write_motion(armature: bpy.types.Object, motion: Motion, name: str, frame_start: int = 1) -> bpy.types.Action:
+def write_motion(
+    armature: bpy.types.Object,
+    motion: Motion,
+    name: str,
+    frame_start: int = 1,
+    *,
+    carry_from: bpy.types.Action | None = None,
+    carry_slot: str = "",
+) -> bpy.types.Action:
     """Write `motion` into a NEW action called `name` (keys at frame_start, frame_start + 1, ...).
 
     The armature's current action is not touched and the new one is not assigned (the caller
     decides). Bones are switched to quaternion rotation mode, since the new
     action keys quaternions. Every motion joint must be a bone with the same parent.
+
+    carry_from: the action the motion was read from. Every channel of it the motion does not
+    decide is copied into the new action, keys and settings as they are (see `_carry_fcurves`):
+    object keys, custom properties, bone scale, bones outside the motion. The motion decides the
+    rotation (in any rotation mode) and location of its joints' bones. carry_slot (Blender 4.4+):
+    identifier of the slot whose channels are carried, the one the armature plays carry_from
+    through ("": its first object slot); they go into the new action's one slot.
+    On failure nothing is left behind: the new action is removed.
     """
     bones = _bones_in_order(armature)
     joints = _joint_bones(armature, motion.skeleton, bones)
@@ -469,19 +532,25 @@ def write_motion(armature: bpy.types.Object, motion: Motion, name: str, frame_st
     basis_loc = quat.rotate(quat.conj(b[keyed_loc]), translation[:, keyed_loc] - rest_offsets[keyed_loc]) / scale
 
     action = bpy.data.actions.new(name)
-    new_fcurve = _fcurve_factory(action, armature)
     frames = frame_start + np.arange(motion.num_frames, dtype=np.float64)
     loc_keys, rot_keys = _key_points(frames, basis_loc), _key_points(frames, basis_rot)
     linear = np.full(motion.num_frames, _LINEAR, dtype=np.uint8)
     names = motion.skeleton.names
-    for j, bone_name in enumerate(names):
-        path = f'pose.bones["{bpy.utils.escape_identifier(bone_name)}"]'
-        if j in keyed_loc:
-            k = keyed_loc.index(j)
-            for axis in range(3):
-                _set_keys(new_fcurve(path + ".location", axis, bone_name), loc_keys[k, axis], linear)
-        for axis in range(4):
-            _set_keys(new_fcurve(path + ".rotation_quaternion", axis, bone_name), rot_keys[j, axis], linear)
+    try:
+        new_fcurve = _fcurve_factory(action, armature)
+        for j, bone_name in enumerate(names):
+            path = f'pose.bones["{bpy.utils.escape_identifier(bone_name)}"]'
+            if j in keyed_loc:
+                k = keyed_loc.index(j)
+                for axis in range(3):
+                    _set_keys(new_fcurve(path + ".location", axis, bone_name), loc_keys[k, axis], linear)
+            for axis in range(4):
+                _set_keys(new_fcurve(path + ".rotation_quaternion", axis, bone_name), rot_keys[j, axis], linear)
+        if carry_from is not None:
+            _carry_fcurves(armature, carry_from, carry_slot, new_fcurve, set(names))
+    except BaseException:
+        bpy.data.actions.remove(action)
+        raise
     for bone_name in names:
         armature.pose.bones[bone_name].rotation_mode = "QUATERNION"
     return action
@@ -543,7 +612,103 @@ def _fcurve_factory(
 
     def new_fcurve(path: str, index: int, group: str) -> bpy.types.FCurve:  # 4.4 / 4.5
         fcurve = channelbag.fcurves.new(path, index=index)
-        fcurve.group = channelbag.groups.get(group) or channelbag.groups.new(group)
+        if group:  # "" leaves it ungrouped, as the other two APIs do
+            fcurve.group = channelbag.groups.get(group) or channelbag.groups.new(group)
         return fcurve
 
     return new_fcurve
+
+
+# ---------------------------------------------------------------------------------------------
+# Carrying the source action's other channels into a written action
+
+# A pose bone's channel: its name (quoted either way, escaped) and the property.
+_BONE_CHANNEL = re.compile(r"""^pose\.bones\[(["'])((?:\\.|(?!\1).)*)\1\]\.(\w+)$""")
+# The channels of a motion joint's bone that the written motion decides, at any array index (a
+# rotation mode the bone leaves for quaternions, a location the motion leaves at rest included).
+_DECIDED = frozenset({"location", "rotation_quaternion", "rotation_euler", "rotation_axis_angle"})
+# Keyframe fields a carried curve copies, with the buffer type foreach_get/foreach_set copy as is
+# (an enum as its stored byte).
+_KEY_FIELDS = (
+    ("co", 2, np.float32),
+    ("handle_left", 2, np.float32),
+    ("handle_right", 2, np.float32),
+    ("interpolation", 1, np.uint8),
+    ("easing", 1, np.uint8),
+    ("handle_left_type", 1, np.uint8),
+    ("handle_right_type", 1, np.uint8),
+    ("type", 1, np.uint8),
+    ("back", 1, np.float32),
+    ("amplitude", 1, np.float32),
+    ("period", 1, np.float32),
+)
+_FCURVE_FIELDS = ("extrapolation", "mute", "hide", "lock", "color_mode", "color", "auto_smoothing")
+
+
+def _carry_fcurves(
+    armature: bpy.types.Object,
+    source: bpy.types.Action,
+    slot_identifier: str,
+    new_fcurve: Callable[[str, int, str], bpy.types.FCurve],
+    joints: set[str],
+) -> None:
+    """Copy every F-curve `source` plays on the armature through the slot `slot_identifier` (4.4+),
+    except the channels the motion decides (`_DECIDED` of the `joints`' bones), with new_fcurve,
+    into the same group. A copy is the curve as it is: keys in bulk (frame, value, handles and
+    their types, interpolation, easing and its parameters, key type), extrapolation, mute and
+    display settings, modifiers; its integer or on/off evaluation is set as Blender sets it for
+    the property the path names on the armature."""
+    for fcurve in _slot_fcurves(source, _slot_named(source, slot_identifier)):
+        match = _BONE_CHANNEL.match(fcurve.data_path)
+        if match and match[3] in _DECIDED and re.sub(r"\\(.)", r"\1", match[2]) in joints:
+            continue
+        copy = new_fcurve(fcurve.data_path, fcurve.array_index, fcurve.group.name if fcurve.group else "")
+        _copy_fcurve(fcurve, copy)
+        with suppress(RuntimeError):  # a path the armature lacks (a property removed since): flags as made
+            copy.update_autoflags(armature)
+
+
+def _slot_named(action: bpy.types.Action, identifier: str) -> Any:
+    """The action's slot `identifier` (Blender 4.4+; "" or not found: its first object slot, the
+    one a bake plays it through when none is assigned), None without slots."""
+    slots = list(getattr(action, "slots", ()))
+    named = [s for s in slots if s.identifier == identifier]
+    return next(iter(named or [s for s in slots if s.target_id_type in {"OBJECT", "UNSPECIFIED"}]), None)
+
+
+def _copy_fcurve(source: bpy.types.FCurve, target: bpy.types.FCurve) -> None:
+    """The keys (or samples), settings and modifiers of `source` onto the new, empty `target`.
+
+    Keys go in last: adding a Cycles modifier makes Blender recompute the handles of the keys a
+    curve has, which must stay as the source has them. Samples go in before the modifiers, which
+    sampling would bake into them."""
+    for field in _FCURVE_FIELDS:
+        setattr(target, field, getattr(source, field))
+    count = len(source.keyframe_points)
+    if not count and len(source.sampled_points):  # baked samples, one per frame: sampled from linear keys
+        samples = np.empty(2 * len(source.sampled_points), dtype=np.float32)
+        source.sampled_points.foreach_get("co", samples)  # pyright: ignore[reportArgumentType]
+        _set_keys(target, samples, np.full(len(samples) // 2, _LINEAR, dtype=np.uint8))
+        target.convert_to_samples(round(samples[0]), round(samples[-2]) + 1)  # the end frame is not sampled
+    copies = [(modifier, target.modifiers.new(modifier.type)) for modifier in source.modifiers]
+    for modifier, copy in copies:
+        _copy_settings(modifier, copy)
+    for modifier, copy in sorted(copies, key=lambda pair: bool(pair[0].active)):  # each new one took it: active last
+        copy.active = modifier.active
+    if count:
+        target.keyframe_points.add(count)
+        for field, width, dtype in _KEY_FIELDS:
+            values = np.empty(count * width, dtype=dtype)
+            source.keyframe_points.foreach_get(field, values)  # pyright: ignore[reportArgumentType]
+            target.keyframe_points.foreach_set(field, values)  # pyright: ignore[reportArgumentType]
+
+
+def _copy_settings(source: Any, target: Any) -> None:
+    """An F-curve modifier's settings onto a new one of its type (in RNA order, which sets a
+    generator's order before its coefficients), and an envelope's control points."""
+    for prop in source.bl_rna.properties:
+        if not prop.is_readonly and prop.type not in {"POINTER", "COLLECTION"}:
+            setattr(target, prop.identifier, getattr(source, prop.identifier))
+    for point in getattr(source, "control_points", ()):
+        added = target.control_points.add(point.frame)
+        added.min, added.max = point.min, point.max

@@ -2,12 +2,16 @@
 
 A bake reads the armature's action (action_io.read_motion) and its impact markers (impacts.py),
 runs core.react.bake_reactions, and writes the reacted motion into a NEW action `<action>.reacted`,
-assigned to the armature. The original action keeps a fake user and is never modified; clearing
-the bake assigns it again and removes the reacted action. What a bake replaced (the original
-action, its slot, the bones' rotation modes, which write_motion switches to quaternions) is kept
-in a property group on the armature object, `Object.reactive_anim_bake`, with the last bake's
-per-impact summary for the panel. Baking an armature that already plays its reacted action bakes
-the original again and replaces the reacted action.
+assigned to the armature; it carries every channel of the original the reacted motion does not
+decide (object keys, custom properties, bone scale, other bones: action_io.write_motion), so up to
+the first impact it plays exactly as the original. The original action keeps a fake user and is
+never modified; clearing the bake assigns it again and removes the reacted action. What a bake
+replaced (the original action, its slot, the bones' rotation modes, which write_motion switches to
+quaternions) is kept in a property group on the armature object, `Object.reactive_anim_bake`, with
+the last bake's per-impact summary for the panel. Baking an armature that already plays its
+reacted action bakes the original again (read in its rotation modes) and replaces the reacted
+action. The motion is read and written with the object as at the action's first frame, wherever
+the playhead is (`held_at_frame`).
 
 A reaction often runs past the animation (a fall and a get-up after the walk has ended): a bake, a
 preview and an accepted preview widen the scene's frame range to what the armature plays, so that
@@ -33,13 +37,15 @@ from __future__ import annotations
 import hashlib
 import json
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, cast
 
 import bpy
 from bpy.props import IntVectorProperty, PointerProperty, StringProperty
+from mathutils import Quaternion, Vector
 
 from ..core.errors import BVHError, ImpactError, LibraryError, ReactiveAnimError, SkeletonError
 from ..core.impact import Impact
@@ -112,6 +118,15 @@ def source_action(armature: bpy.types.Object) -> bpy.types.Action:
     if action is None:
         raise SkeletonError(settings.no_action_message(armature))
     return action
+
+
+def source_slot(armature: bpy.types.Object) -> str:
+    """Identifier of the slot the armature plays its source action through (Blender 4.4+), whose
+    channels a bake carries; "" in 4.2 or with none assigned."""
+    if is_baked(armature):
+        return bake_state(armature).original_slot
+    slot = _slot(armature.animation_data) if armature.animation_data is not None else None
+    return slot.identifier if slot is not None else ""
 
 
 def impacts_fingerprint(scene: bpy.types.Scene, armature_name: str) -> str:
@@ -280,7 +295,10 @@ def prepare_bake(
     impact_list = impacts.read_impacts(scene, armature, (first, last))
     opened = library if isinstance(library, Library) else resources.open_library(library)
     model, note = classifier if classifier is not None else resources.open_classifier(model_path)
-    with consumed.active_while(armature, bake_state(armature).muted):  # a rebake reads the original as it played
+    # a rebake reads the original as it played; the object as at the first frame, wherever the playhead is
+    state = bake_state(armature)
+    with consumed.active_while(armature, state.muted), _original_rotation_modes(armature), held_at_frame(first):
+        impact_list = _turned_as_at(first, armature, impact_list)
         motion = action_io.read_motion(armature, source, (first, last))
     role_map.apply_character_roles(armature, motion.skeleton)
     labels = [impacts.marker_label(m) for m in markers]
@@ -302,6 +320,62 @@ def prepare_bake(
         settings=settings,
         fingerprint=impacts_fingerprint(scene, armature.name),
     )
+
+
+@contextmanager
+def _original_rotation_modes(armature: bpy.types.Object) -> Iterator[None]:
+    """While a rebake reads the original: the bones in the rotation modes the original keys (the
+    bake switched the skeleton's to quaternions; Euler keys read in quaternion mode read nothing)."""
+    state = bake_state(armature)
+    if not (is_baked(armature) and state.rotation_modes):
+        yield
+        return
+    now = {pose_bone.name: pose_bone.rotation_mode for pose_bone in armature.pose.bones}
+    restore_rotation_modes(armature, json.loads(state.rotation_modes))
+    try:
+        yield
+    finally:
+        restore_rotation_modes(armature, now)
+
+
+@contextmanager
+def held_at_frame(frame: int) -> Iterator[None]:
+    """The scene at `frame` while the body runs, its playhead put back afterwards.
+
+    A bake reads the motion, and writes the reacted one, with the armature's object placed as at the
+    action's first frame: motions are measured in the object's axes (action_io), and a keyed or
+    parented object turns from frame to frame. Read and written at the same frame, the result is
+    the same whatever frame the playhead was on, and the object's own keys, carried into the
+    reacted action, move it as they moved the original."""
+    scene = bpy.context.scene
+    playhead = scene.frame_current, scene.frame_subframe
+    scene.frame_set(frame)
+    try:
+        yield
+    finally:
+        scene.frame_set(playhead[0], subframe=playhead[1])
+
+
+def _turned_as_at(first: int, armature: bpy.types.Object, impact_list: list[Impact]) -> list[Impact]:
+    """The impacts with their world pushes as the character, read as at frame `first`, feels them:
+    a push that lands after the object has turned (a keyed rotation, a turning parent) is turned
+    back by the object's turn since then. Leaves the scene at `first`."""
+    scene = bpy.context.scene
+
+    def rotation(frame: int) -> Quaternion:
+        scene.frame_set(frame)
+        return armature.matrix_world.to_3x3().normalized().to_quaternion()
+
+    at = {frame: rotation(frame) for frame in sorted({first + round(i.frame) for i in impact_list})}
+    start = rotation(first)
+    turned = []
+    for impact in impact_list:
+        now = at[first + round(impact.frame)]
+        if now != start:  # unturned, the push is left exactly as typed
+            turned_back = start @ now.inverted() @ Vector(impact.direction)
+            impact = replace(impact, direction=(turned_back.x, turned_back.y, turned_back.z))
+        turned.append(impact)
+    return turned
 
 
 ZERO_SCALE = 1e-6  # an object axis scaled below this is taken as flattened to nothing
@@ -365,10 +439,15 @@ def commit_bake(job: BakeJob, baked: Baked, seconds: float) -> BakeResult:
     """Write the reacted motion as `<action>.reacted`, assign it and widen the scene's frame range
     to it (main thread). The range ignores a pending preview: the bake supersedes it."""
     armature, source = job_target(job)
-    name = source.name + REACTED_SUFFIX
-    reacted = assign_reacted(
-        armature, source, lambda: action_io.write_motion(armature, baked.motion, name, frame_start=job.first_frame)
-    )
+    name, slot = source.name + REACTED_SUFFIX, source_slot(armature)
+
+    def write() -> bpy.types.Action:
+        with held_at_frame(job.first_frame):  # where prepare_bake read it
+            return action_io.write_motion(
+                armature, baked.motion, name, job.first_frame, carry_from=source, carry_slot=slot
+            )
+
+    reacted = assign_reacted(armature, source, write)
     switch_off_consumed(armature, baked.motion.skeleton.names)
     note = extend_frame_range(bpy.data.scenes[job.scene], armature, with_preview=False)
     result = replace(job_result(job, baked, reacted.name, seconds), range_note=note)

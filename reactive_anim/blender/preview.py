@@ -40,8 +40,16 @@ def show_preview(job: bake.BakeJob, baked: Baked, seconds: float) -> bake.BakeRe
     discard_preview(armature)
     ghost = action = None
     try:
-        ghost = _make_ghost(armature)
-        action = action_io.write_motion(ghost, baked.motion, source.name + PREVIEW_SUFFIX, job.first_frame)
+        with bake.held_at_frame(job.first_frame):  # placed and written as a bake writes (bake.commit_bake)
+            ghost = _make_ghost(armature)
+            action = action_io.write_motion(
+                ghost,
+                baked.motion,
+                source.name + PREVIEW_SUFFIX,
+                job.first_frame,
+                carry_from=source,  # the character's other channels, as the bake carries them
+                carry_slot=bake.source_slot(armature),
+            )
         bake.assign_action(ghost, action)
     except BaseException:
         if action is not None:
@@ -84,6 +92,7 @@ def _make_ghost(armature: bpy.types.Object) -> bpy.types.Object:
     ghost.animation_data_create()
     for pose_bone in ghost.pose.bones:
         cast(Any, pose_bone).color.palette = GHOST_BONE_COLOUR  # PoseBone.color: Blender 4.0+
+        pose_bone.rotation_mode = armature.pose.bones[pose_bone.name].rotation_mode  # for carried rotations
     return ghost
 
 
