@@ -479,12 +479,7 @@ def used_frames(name: str, motion: Motion, frames: tuple[int, int] | None) -> tu
 
 def compile_clip(entry: ClipEntry, settings: LibrarySettings) -> tuple[ClipInfo, FrameFeatures]:
     """Read one clip and compute its features at the library's rate; errors name the clip."""
-    try:
-        motion = bvh.read_bvh(entry.path, unit=settings.unit, up=settings.up)
-    except FileNotFoundError:
-        raise _entry_error(entry.name, f"file not found: {entry.path}") from None
-    except BVHError as exc:
-        raise _entry_error(entry.name, str(exc)) from None
+    motion = _read_entry(entry.name, entry.path, settings)
     try:
         role_map = assign_roles(motion.skeleton, dict(entry.roles) or None)
     except SkeletonError as exc:
@@ -511,13 +506,17 @@ def compile_clip(entry: ClipEntry, settings: LibrarySettings) -> tuple[ClipInfo,
 
 def compile_chain(entry: ChainEntry, settings: LibrarySettings) -> tuple[int, int]:
     """The BVH frames [start, stop) a chained clip plays (used_frames); errors name the clip."""
+    return used_frames(entry.name, _read_entry(entry.name, entry.path, settings), entry.frames)
+
+
+def _read_entry(name: str, path: Path, settings: LibrarySettings) -> Motion:
+    """A clip or chain entry's BVH file, read in the library's unit and up axis; errors name it."""
     try:
-        motion = bvh.read_bvh(entry.path, unit=settings.unit, up=settings.up)
+        return bvh.read_bvh(path, unit=settings.unit, up=settings.up)
     except FileNotFoundError:
-        raise _entry_error(entry.name, f"file not found: {entry.path}") from None
+        raise _entry_error(name, f"file not found: {path}") from None
     except BVHError as exc:
-        raise _entry_error(entry.name, str(exc)) from None
-    return used_frames(entry.name, motion, entry.frames)
+        raise _entry_error(name, str(exc)) from None
 
 
 def compile_library(
