@@ -137,10 +137,7 @@ class REACTIVE_ANIM_OT_add_impact(bpy.types.Operator):
     )  # fmt: skip
     strength: FloatProperty(
         name="Strength",
-        description=(
-            "Impulse in N·s, above 0 (to push the other way, turn the direction around): 30 is a shove, "
-            "100 a strong push, 300 a tackle (on the trunk: a hand or foot takes 50-190 at most)"
-        ),
+        description=impacts.STRENGTH_DESCRIPTION,
         default=impacts.DEFAULT_STRENGTH,
         soft_min=10.0,
         soft_max=400.0,

@@ -39,6 +39,13 @@ REACTION_ITEMS = [(AUTO, "Automatic", "The classifier picks the reaction class",
 _REACTION_NUMBERS = {item[3] for item in REACTION_ITEMS}
 
 
+# The Strength field's tooltip, on the impact and on Add Impact alike.
+STRENGTH_DESCRIPTION = (
+    "Impulse in N·s, above 0 (to push the other way, turn the direction around): 30 is a shove, "
+    "100 a strong push, 300 a tackle (on the trunk: a hand or foot takes 50-190 at most)"
+)
+
+
 class REACTIVE_ANIM_PG_impact(bpy.types.PropertyGroup):
     """The impact a timeline marker carries (empty uid: an ordinary marker)."""
 
@@ -58,10 +65,7 @@ class REACTIVE_ANIM_PG_impact(bpy.types.PropertyGroup):
     # typed and the bake refuses any strength not above 0, naming the marker and the value.
     strength: FloatProperty(
         name="Strength",
-        description=(
-            "Impulse in N·s, above 0 (to push the other way, turn the direction around): 30 is a shove, "
-            "100 a strong push, 300 a tackle (on the trunk: a hand or foot takes 50-190 at most)"
-        ),
+        description=STRENGTH_DESCRIPTION,
         default=DEFAULT_STRENGTH,
         soft_min=10.0,
         soft_max=400.0,
