@@ -16,8 +16,12 @@ What we add beyond the paper, and why:
 - A clip whose library entry names a `next` clip (a get-up after a fall, paper Fig. 3) is followed
   by it, placed where the fall ends and faded in over `chain_blend`.
 - Resume: when the reaction ends standing, the original motion resumes. Its best re-entry window
-  (Eq. 1, after B) is aligned with the reaction's last frames and faded in over that window, so a
-  walker who stumbles walks on. A reaction that ends lying down holds its last pose.
+  (Eq. 1, after B) is aligned with a window of the reaction's frames and faded in over it, so a
+  walker who stumbles walks on. The
+  fade may start from F on (after a get-up, at its end), where Eq. 1 plus a cost per second of
+  waiting (RESUME_WAIT) is least: a walker walks on once the stumble's step has landed instead of
+  standing through the clip's recovery, and a stand resumes where the clip has come to rest. A
+  reaction that ends lying down holds its last pose.
 - Several impacts: each starts from the motion as already reacted at its frame (Fig. 4), so a hit
   that lands during an earlier reaction reacts from that reaction.
 - A class the library lacks (a library of real falls and get-ups has no steps): the push is judged
@@ -62,6 +66,7 @@ from .skeleton import Motion, hold_root, static_root
 from .window import (
     TABLE2_POSITION_WEIGHTS,
     TABLE2_ROTATION_WEIGHTS,
+    FrameFeatures,
     Query,
     frame_features,
     joint_weights,
@@ -69,6 +74,9 @@ from .window import (
     yaw_rotate,
 )
 
+RESUME_WAIT = 60.0  # Eq. 1 cost per second a reaction goes on before the motion resumes (_resume)
+RESUME_RATE = 30.0  # fade starts and re-entries tried per second (_resume)
+RESUME_TIE = 0.05  # Eq. 1 costs this close count as equal (_resume)
 STILL_KEPT = 0.5  # s of a clip's still tail played before the motion resumes or a get-up begins
 # The classes that keep the feet nearest each, nearest first, for a push that keeps its feet whose
 # class the library lacks: the same way with more or fewer steps, then a sway. Not a step the other
@@ -263,11 +271,13 @@ def react(
         out = _join(before.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, min(stop, clip.num_frames)))
         clock.lap("blend")
         out, chained, chain_fade = _chain(out, casting, match, ragdoll.roles, settings)
-        end_frame = out.num_frames - 1
         standing = chained is not None or not match.reaction_class.startswith("fall_")
         window = max(2, round(library.window * motion.fps / library.fps)) if settings.resume and standing else 0
+        # a stumble may hand back to the motion from F on; a get-up plays to its end first
+        earliest = frame_c + steps if chained is None else out.num_frames - window
         out, resumed_at, resume_fade = _resume_or_hold(out, source or motion, int(np.ceil(impact.frame)), window,
-                                                       ragdoll.roles)  # fmt: skip
+                                                       ragdoll.roles, earliest)  # fmt: skip
+        end_frame = resume_fade[0][1] - 1 if resume_fade else out.num_frames - 1
     if settings.hold_feet:
         fades = [(frame_c, frame_c + steps + 1), *chain_fade, *resume_fade]
         # B's own pose stays; a held last pose (a fall with nothing chained) is held lifted as it ends
@@ -543,20 +553,21 @@ def _still_from(library: Library, clip_index: int, fps: float) -> int:
 
 
 def _resume_or_hold(
-    out: Motion, source: Motion, first: int, window: int, roles: dict[str, str]
+    out: Motion, source: Motion, first: int, window: int, roles: dict[str, str], earliest: int | None = None
 ) -> tuple[Motion, int | None, list[tuple[int, int]]]:
     """Resume the source over a `window`-frame fade (0: do not resume, as after a fall with nothing
-    chained), re-entering at a frame from `first` to a second past where the fade starts (the
+    chained) that starts at a frame from `earliest` on (default: the last `window` frames of `out`;
+    see _resume), re-entering at a frame from `first` to a second past where the fade starts (the
     resumed motion stays near the timeline's own time: a walk repeats within a second, and later
     markers still land where the animator put them); else hold the last pose. Either way the result
     runs at least to the source's end (a re-entry up to a second ahead ends that much sooner: the
     last pose is held). Also returns the source's frame it re-entered at (None: held) and the
     fade's frames [a, b) (none when held)."""
-    stop = min(source.num_frames, out.num_frames + round(source.fps))
+    earliest = out.num_frames - window if earliest is None else max(0, min(earliest, out.num_frames - window))
     resumed_at, fade = None, []
-    if window and stop - first > window:
-        fade = [(out.num_frames - window, out.num_frames)]
-        out, resumed_at = _resume(out, source, (first, stop), window, roles)
+    if window and min(source.num_frames, out.num_frames + round(source.fps)) - first > window:
+        out, resumed_at, start = _resume(out, source, first, window, roles, earliest)
+        fade = [(start, start + window)]
     missing = source.num_frames - out.num_frames  # a bake never shortens the action
     if missing > 0:
         hold = out.slice(out.num_frames - 1, out.num_frames)
@@ -565,23 +576,49 @@ def _resume_or_hold(
 
 
 def _resume(
-    out: Motion, source: Motion, entries: tuple[int, int], window: int, roles: dict[str, str]
-) -> tuple[Motion, int]:
-    """Align the source's best re-entry window (Eq. 1, within its frames `entries`) with the last
-    `window` frames of `out`, fade over that window, and play the source on from there."""
-    first, stop = entries
-    tail = out.slice(out.num_frames - window, out.num_frames)
-    query = Query(frame_features(tail, roles))
-    candidates = frame_features(source.slice(first, stop), roles)
-    starts = np.arange(candidates.num_frames - window + 1)
-    costs = window_costs(candidates, starts, query,
-                         joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS))  # fmt: skip
-    entry = first + int(np.argmin(costs))
+    out: Motion, source: Motion, first: int, window: int, roles: dict[str, str], earliest: int
+) -> tuple[Motion, int, int]:
+    """The source's best re-entry window (Eq. 1, at source frames from `first` to a second past the
+    fade's start) aligned with `out`'s `window` frames from the best fade start (from `earliest` to
+    the last `window` frames), faded in over them and played on from there. The fade
+    start weighs in: each second the reaction goes on past `earliest` costs RESUME_WAIT (a pushed
+    walker whose step has landed walks on rather than standing through the clip's recovery, while
+    a stand resumes where the clip has come to rest, which matches it far better). Starts and
+    entries are tried every `stride` frames (about RESUME_RATE a second: a 120 fps take would
+    otherwise try 16 times as many pairs). Returns the motion, the source frame re-entered at and
+    the fade's first frame."""
+    stride = max(1, round(out.fps / RESUME_RATE))
+    stop = min(source.num_frames, out.num_frames + round(source.fps))
+    tails = _rows(frame_features(out.slice(earliest, out.num_frames), roles), slice(None, None, stride))
+    candidates = _rows(frame_features(source.slice(first, stop), roles), slice(None, None, stride))
+    span = max(2, round(window / stride))
+    wp, wq = joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS)
+    tried: list[tuple[float, int, int]] = [(np.inf, out.num_frames - window, first)]
+    for k in range((out.num_frames - window - earliest) // stride + 1):
+        start = earliest + k * stride
+        query = Query(_rows(tails, slice(k, k + span)))
+        last = min(stop, start + round(source.fps)) - window  # re-entries up to a second past the start
+        entries = min((last - first) // stride + 1, candidates.num_frames - span + 1)
+        if entries <= 0 or query.window < span:
+            continue
+        costs = window_costs(candidates, np.arange(entries), query, wp, wq)
+        j = int(np.argmax(costs <= costs.min() + RESUME_TIE))  # near ties: see below
+        tried.append((float(costs[j]) + RESUME_WAIT * (start - earliest) / out.fps, start, first + j * stride))
+    # the earliest start within RESUME_TIE of the least cost: a near tie goes the same way when the
+    # motion differs by round-off (the character turned on the set), where the least alone may not
+    least = min(total for total, _, _ in tried)
+    _, begin, entry = next(t for t in tried[1:] + tried[:1] if t[0] <= least + RESUME_TIE)
+    tail = out.slice(begin, begin + window)
     yaw, offset = _alignment(tail.slice(0, 1), source.slice(entry, entry + 1), roles)
     resumed = place(source.slice(entry, source.num_frames), yaw, offset)
     faded = blend(tail, resumed.slice(0, window), fade_weights(window))
     rest = resumed.slice(window, resumed.num_frames)
-    return _join(out.slice(0, out.num_frames - window), faded, rest), entry
+    return _join(out.slice(0, begin), faded, rest), entry, begin
+
+
+def _rows(features: FrameFeatures, rows: slice) -> FrameFeatures:
+    f = features
+    return FrameFeatures(f.pos_local[rows], f.heading[rows], f.ground[rows], f.rot[rows])
 
 
 # ---------------------------------------------------------------------------------------------

@@ -16,6 +16,7 @@ from reactive_anim.core.library import load_library
 from reactive_anim.core.react import STILL_KEPT, ReactionSettings, bake_reactions, character_ragdoll, react
 from reactive_anim.core.retarget import leg_length
 from reactive_anim.core.roles import assign_roles
+from tests.support import believability as bl
 from tests.support.mocap import REPO, require_mocap
 from tests.support.poses import ground_axes, leg_joints
 
@@ -90,9 +91,9 @@ def test_a_fall_chains_its_get_up_and_a_stumble_resumes_the_walk(walk, library, 
         assert r.motion.num_frames >= walk.num_frames
 
 
-def test_a_reaction_plays_its_clip_and_ends_half_a_second_into_its_still_tail(walk, library, ragdoll) -> None:
+def test_a_reaction_plays_its_clip_and_ends_by_half_a_second_into_its_still_tail(walk, library, ragdoll) -> None:
     """Pushes from all around on the walk: no jump lands in a clip's still tail (the clip still
-    moves after E), and the reaction ends 0.5 s into that tail (STILL_KEPT), where the walk
+    moves after E), and the reaction ends at most 0.5 s into that tail (STILL_KEPT), where the walk
     resumes or a get-up follows, not after the sample step clips' 2 s stand."""
     limits = library.search_index().limits
     for k in range(8):
@@ -107,6 +108,21 @@ def test_a_reaction_plays_its_clip_and_ends_half_a_second_into_its_still_tail(wa
         if r.chained is None:
             reaction_end = r.frame_f + round((still - (r.jump_frame + library.window)) / library.fps * walk.fps)
             assert r.end_frame <= reaction_end + round(STILL_KEPT * walk.fps) + 1, (r.clip, r.end_frame, reaction_end)
+
+
+def test_a_pushed_walker_walks_on_once_its_step_has_landed(walk, library, ragdoll) -> None:
+    """A nudge from behind or in front on the walk: the walk resumes where the stumble's step has
+    landed (react._resume weighs the wait), so the pelvis never stands nearly still (under 0.25 m/s
+    over the floor) for 0.2 s or more, as the sample step clips' stand would have it for 0.6-1.5 s."""
+    pelvis, classifier = walk.skeleton.index(ragdoll.roles["pelvis"]), load_classifier()
+    for frame in (40, 70, 100):
+        for sign in (1.0, -1.0):
+            r = react(walk, Impact(frame, "chest", tuple(sign * forward(walk, frame)), 40.0), library, classifier,
+                      ragdoll=ragdoll)  # fmt: skip
+            assert not r.reaction_class.startswith("fall_") and r.resumed_at is not None, r.reaction_class
+            speed = bl.horizontal_speed(r.motion.global_positions()[:, pelvis], walk.fps)
+            window = speed[frame : r.end_frame + round(0.5 * walk.fps)]
+            assert bl.longest_still(window, walk.fps) < 0.2, (frame, sign, r.clip, bl.longest_still(window, walk.fps))
 
 
 def test_same_input_same_output(walk, library, ragdoll) -> None:

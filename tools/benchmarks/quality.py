@@ -675,6 +675,8 @@ def bench_quality() -> None:
         print("# quality: no reaction measured")
         return
     table = figures(rows, refs, failures)
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / "reactions.json").write_text(json.dumps(rows, indent=None, default=float))
     sheets = write_sheets(rows, library, classifier, refs)
     print_rows(table)
     takes = len({r["take"] for r in rows})
