@@ -9,22 +9,26 @@ from __future__ import annotations
 
 import argparse
 import os
+import platform
 import sys
 import time
 import traceback
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .core.errors import ReactiveAnimError
+from .farm.report import FileOutcome, report_lines
+from .farm.task import die_with_parent
 
 if TYPE_CHECKING:  # bpy and the Blender layer are imported by the commands that need them
     import bpy
 
     from .core.library import Library
     from .core.react import ReactionClassifier
+
+    Opened = tuple[Library, tuple[ReactionClassifier | None, str], str]  # library, classifier, settings digest
 
 
 def _import_command(args: argparse.Namespace) -> int:
@@ -49,18 +53,6 @@ def _import_command(args: argparse.Namespace) -> int:
     return 0
 
 
-@dataclass
-class _FileOutcome:
-    """One input file of `bake`: what was baked, or why not."""
-
-    path: Path
-    impacts: int = 0
-    classes: list[str] = field(default_factory=list)
-    seconds: float = 0.0
-    result: str = ""
-    failed: bool = False
-
-
 def _bake_command(args: argparse.Namespace) -> int:
     """Bake every armature that has impact markers in each .blend; save `<name>.reacted.blend`.
 
@@ -71,8 +63,14 @@ def _bake_command(args: argparse.Namespace) -> int:
     (a folder, a missing file, two inputs that would write the same output) are reported before
     anything is baked. A file that fails (cannot be read, a bad marker, markers naming an armature
     the file lacks, ...) is not written and the others still bake. Progress goes to stderr, a
-    summary table to stdout. Exit code 0 when every file baked, 1 if any failed, 2 if the library
-    or the classifier model cannot be opened.
+    summary table to stdout, a JSON line per file to --report. Exit code 0 when every file baked,
+    1 if any failed, 2 if the library or the classifier model cannot be opened (or, with
+    --scheduler or --workers, Dask is not installed).
+
+    An output is saved whole (a partial file renamed into place) and records the hash of what it
+    was made from, so a rerun skips the files whose output is complete for the same inputs
+    (--force bakes them again): see farm/outputs.py. --scheduler and --workers bake each file in a
+    Blender process of its own on a Dask cluster (farm/cluster.py), with the same outputs.
 
     The same bake inside Blender, with the extension installed and enabled (one armature; save
     explicitly, and `--python-exit-code 1` makes a failed bake a non-zero exit):
@@ -84,37 +82,116 @@ def _bake_command(args: argparse.Namespace) -> int:
     The operator also takes library_path='...' and model_path='...'; a failed bake raises
     RuntimeError with the message naming the marker, clip or file, and leaves the file as it was.
     """
+    on_farm = args.scheduler is not None or args.workers is not None
+    if on_farm:
+        _require_dask()  # before anything else: a farm run without Dask stops here
     inputs = list(dict.fromkeys(p.resolve() for p in args.blend))  # an input given twice is baked once
     plan = _plan_outputs(inputs, args)
-    outcomes: dict[Path, _FileOutcome] = {}
-    for path, why in plan.items():
-        if isinstance(why, str):
-            print(f"error: {why}", file=sys.stderr)
-            outcomes[path] = _FileOutcome(path, result=why, failed=True)
-    to_bake = {path: out for path, out in plan.items() if isinstance(out, Path)}
-    if to_bake:
-        try:
-            library, classifier = _open_library_and_model(args)
-        except (ReactiveAnimError, OSError) as exc:
-            print(f"error: {exc}", file=sys.stderr)
+    outcomes: dict[Path, FileOutcome] = {}
+    with report_lines(args.report) as write:
+        for path, why in plan.items():
+            if isinstance(why, str):
+                print(f"error: {why}", file=sys.stderr)
+                outcomes[path] = FileOutcome(path, worker=platform.node(), result=why, failed=True)
+                write(outcomes[path])
+        to_bake = {path: out for path, out in plan.items() if isinstance(out, Path)}
+
+        def done(outcome: FileOutcome) -> None:
+            outcomes[outcome.path] = outcome
+            write(outcome)
+
+        bake = _bake_on_cluster if on_farm else _bake_here
+        if to_bake and bake(to_bake, args, done):
             return 2
-        for k, (path, out) in enumerate(to_bake.items(), 1):
-            print(f"[{k}/{len(to_bake)}] {path}", file=sys.stderr)
-            outcome = outcomes[path] = _bake_file(path, out, library, classifier)
-            status = ("FAILED: " if outcome.failed else "") + outcome.result
-            print(f"  {status} ({outcome.seconds:.1f} s)", file=sys.stderr)
     _print_table([outcomes[path] for path in plan])
     return 1 if any(o.failed for o in outcomes.values()) else 0
 
 
-def _open_library_and_model(args: argparse.Namespace) -> tuple[Library, tuple[ReactionClassifier | None, str]]:
-    """Opened once, only when some input is left to bake: every file bakes with the same ones."""
-    from .blender import resources
+def _require_dask() -> None:
+    """Dask is optional, needed by --scheduler and --workers only: its absence is said in one line."""
+    try:
+        from .farm import cluster  # noqa: F401
+    except ImportError as exc:
+        raise ReactiveAnimError(
+            f"--scheduler and --workers need Dask's `distributed` package ({exc}): install it into this Python "
+            "with `python -m pip install distributed` (pinned: tools/requirements/farm.txt)"
+        ) from None
 
-    library = resources.open_library(args.library.resolve() if args.library else None)
-    classifier = resources.open_classifier(args.model.resolve() if args.model else None)
+
+def _bake_here(to_bake: dict[Path, Path], args: argparse.Namespace, done: Callable[[FileOutcome], None]) -> int:
+    """Bake the files one after another in this process; 2 if the library or model cannot be opened."""
+    try:
+        opened = _open_library_and_model(args)
+    except (ReactiveAnimError, OSError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    for k, (path, out) in enumerate(to_bake.items(), 1):
+        print(f"[{k}/{len(to_bake)}] {path}", file=sys.stderr)
+        outcome = _bake_or_skip(path, out, opened, args.force)
+        status = ("FAILED: " if outcome.failed else "") + outcome.result
+        print(f"  {status} ({outcome.seconds:.1f} s)", file=sys.stderr)
+        done(outcome)
+    return 0
+
+
+def _bake_on_cluster(to_bake: dict[Path, Path], args: argparse.Namespace, done: Callable[[FileOutcome], None]) -> int:
+    """One task per file on the Dask cluster, each the one-file command with this run's settings;
+    2 if the library or model cannot be opened here (checked once rather than failing every task;
+    the farm reads them at the same paths)."""
+    import bpy
+
+    from .farm import cluster
+
+    try:
+        _open_library_and_model(args)
+    except (ReactiveAnimError, OSError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    jobs = {str(path): _one_file_arguments(out, args) for path, out in to_bake.items()}
+    for row in cluster.bake_all(jobs, bpy.app.binary_path, args.scheduler, args.workers):
+        done(FileOutcome.from_row(row))
+    return 0
+
+
+def _one_file_arguments(out: Path, args: argparse.Namespace) -> list[str]:
+    """The arguments after the file name that bake it to `out` with this run's settings."""
+    where = ["--overwrite"] if args.overwrite else ["--out-dir", str(out.parent)]
+    chosen = [(flag, value) for flag, value in (("--library", args.library), ("--model", args.model)) if value]
+    settings = [part for flag, value in chosen for part in (flag, str(value.resolve()))]
+    return where + settings + (["--force"] if args.force else [])
+
+
+def _open_library_and_model(args: argparse.Namespace) -> Opened:
+    """Opened once, only when some input is left to bake: every file bakes with the same ones, and
+    their digest goes into the hash each output records (farm/outputs.py)."""
+    from .blender import resources
+    from .farm import outputs
+
+    library_path = args.library.resolve() if args.library else None
+    model_path = args.model.resolve() if args.model else None
+    library = resources.open_library(library_path)
+    classifier = resources.open_classifier(model_path)
     print(f"library: {len(library.clips)} clips; {classifier[1]}", file=sys.stderr)
-    return library, classifier
+    source = library_path or resources.default_library_path()
+    assert source is not None  # open_library found it
+    return library, classifier, outputs.settings_digest(source, model_path or resources.default_model_path())
+
+
+def _bake_or_skip(path: Path, out: Path, opened: Opened, force: bool) -> FileOutcome:
+    """The outcome of a file whose output is already complete for its inputs (unless `force`), or
+    of its bake."""
+    from .farm import outputs
+
+    start = time.perf_counter()
+    try:
+        inputs = outputs.inputs_hash(path, opened[2])
+    except OSError as exc:
+        return FileOutcome(path, worker=platform.node(), result=f"cannot read {path.name}: {exc}", failed=True)
+    outcome = None if force else outputs.complete_output(path, out, inputs)
+    if outcome is None:
+        return _bake_file(path, out, opened, inputs)
+    outcome.worker, outcome.seconds = platform.node(), time.perf_counter() - start
+    return outcome
 
 
 def _plan_outputs(inputs: list[Path], args: argparse.Namespace) -> dict[Path, Path | str]:
@@ -144,14 +221,16 @@ def _plan_outputs(inputs: list[Path], args: argparse.Namespace) -> dict[Path, Pa
     return plan
 
 
-def _bake_file(
-    path: Path, out: Path, library: Library, classifier: tuple[ReactionClassifier | None, str]
-) -> _FileOutcome:
-    """Open one .blend, bake the armatures its impact markers name in every scene, save it to `out`."""
+def _bake_file(path: Path, out: Path, opened: Opened, inputs: str) -> FileOutcome:
+    """Open one .blend, bake the armatures its impact markers name in every scene, save it whole to
+    `out` with the hash of its inputs (farm/outputs.py)."""
     import bpy
 
+    from .farm import outputs
+
+    library, classifier, _settings = opened
     start = time.perf_counter()
-    outcome = _FileOutcome(path)
+    outcome = FileOutcome(path, out, inputs, worker=platform.node())
     try:
         try:
             bpy.ops.wm.open_mainfile(filepath=str(path), load_ui=False)
@@ -163,8 +242,8 @@ def _bake_file(
         if not outcome.impacts:
             outcome.result = "no impact markers: nothing baked, nothing written"
         else:
-            out.parent.mkdir(parents=True, exist_ok=True)
-            bpy.ops.wm.save_as_mainfile(filepath=str(out), check_existing=False)
+            outputs.write_record(outcome)
+            outputs.save_whole(out)
             outcome.result = f"saved {out}"
     except (ReactiveAnimError, OSError, RuntimeError) as exc:
         outcome.failed, outcome.result = True, str(exc)
@@ -180,7 +259,7 @@ def _bake_armature(
     armature: bpy.types.Object,
     library: Library,
     classifier: tuple[ReactionClassifier | None, str],
-    outcome: _FileOutcome,
+    outcome: FileOutcome,
 ) -> None:
     """Bake one armature with its scene active: the bake reads the context scene's frame rate and
     evaluates its view layer, as when the animator bakes in that scene."""
@@ -193,6 +272,7 @@ def _bake_armature(
         print(f"    {line}", file=sys.stderr)
     outcome.impacts += len(result.reactions)
     outcome.classes += [r.reaction_class for r in result.reactions]
+    outcome.clips += [r.clip for r in result.reactions]
 
 
 @contextmanager
@@ -276,7 +356,7 @@ def _orphan_message(scene: bpy.types.Scene, name: str, markers: list[str]) -> st
     return f"impact markers {listed} in scene '{scene.name}' name armature '{name}', {why}"
 
 
-def _print_table(outcomes: list[_FileOutcome]) -> None:
+def _print_table(outcomes: list[FileOutcome]) -> None:
     rows = [("file", "impacts", "classes chosen", "time", "result")] + [
         (
             o.path.name,
@@ -290,8 +370,12 @@ def _print_table(outcomes: list[_FileOutcome]) -> None:
     widths = [max(len(row[c]) for row in rows) for c in range(4)]
     for row in rows:
         print("  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=False)) + "  " + row[4])
-    failed = sum(o.failed for o in outcomes)
-    print(f"{len(outcomes) - failed} of {len(outcomes)} files baked" + (f", {failed} failed" if failed else ""))
+    failed, skipped = sum(o.failed for o in outcomes), sum(o.skipped for o in outcomes)
+    print(
+        f"{len(outcomes) - failed} of {len(outcomes)} files baked"
+        + (f" ({skipped} complete already: skipped)" if skipped else "")
+        + (f", {failed} failed" if failed else "")
+    )
 
 
 def _train_command(args: argparse.Namespace) -> int:
@@ -312,6 +396,13 @@ def _unit(text: str) -> str | float:
         return text
 
 
+def _count(text: str) -> int:
+    """A number of workers: a whole number of at least 1."""
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"give a number of workers of at least 1, not {text!r}")
+    return int(text)
+
+
 def parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m reactive_anim", description=__doc__.splitlines()[0] if __doc__ else None
@@ -330,6 +421,11 @@ def parser() -> argparse.ArgumentParser:
     where = bake.add_mutually_exclusive_group()
     where.add_argument("--out-dir", type=Path, help="write <name>.reacted.blend here (default: beside each input)")
     where.add_argument("--overwrite", action="store_true", help="save the baked scene over each input file")
+    bake.add_argument("--force", action="store_true", help="bake even a file whose output is complete for its inputs")
+    bake.add_argument("--report", type=Path, help="write one JSON line per file here (README: Batch on a farm)")
+    farm = bake.add_mutually_exclusive_group()
+    farm.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="bake each file as a task on this Dask scheduler")
+    farm.add_argument("--workers", type=_count, metavar="N", help="bake on a Dask cluster of N workers started here")
     bake.set_defaults(run=_bake_command)
     train = commands.add_parser(
         "train", prefix_chars="+", help="train the reaction classifier (python -m tools.train_classifier --help)"
@@ -340,6 +436,7 @@ def parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    die_with_parent()  # a farm task's bake process: never outlive the worker that started it
     args = parser().parse_args(argv)
     from . import register, unregister
 

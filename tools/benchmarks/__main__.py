@@ -10,7 +10,9 @@ build, step, BC and CD windows), search (the jump search against the reference),
 pipeline per impact and a 20-impact bake), cast (search costs on other skeletons, retarget time),
 sweep (random pushes baked on every shared file: failures, pops, time), quality (believability:
 pushes on the shared walks, runs and idles measured against real capture; a sample of takes, every
-one with --full; contact sheets of the worst in out/quality). Real mocap comes from
+one with --full; contact sheets of the worst in out/quality), farm (batch bakes per minute in one
+process and on a local Dask cluster of 1 and 2 workers, the cluster's cost per task; the farm
+environment). Real mocap comes from
 ../shared/mocap (test and benchmark data only); a group that needs it is skipped with a note where
 it is absent. Each timing is the best of several runs (the least disturbed by other work on the
 machine), with the run count printed beside it."""
@@ -25,6 +27,7 @@ from .blender import bench_blender
 from .bvh import bench_bvh
 from .casting import bench_casting
 from .common import print_table
+from .farm import bench_farm
 from .react import bench_react
 from .search import bench_search
 from .sim import bench_sim
@@ -39,6 +42,7 @@ GROUPS: dict[str, Callable[[], None]] = {
     "cast": bench_casting,
     "sweep": bench_sweep,
     "quality": quality.bench_quality,
+    "farm": bench_farm,
 }
 FLAGS = {"--full": "quality: push every shared walk, run and idle, not the sample"}
 
