@@ -20,17 +20,20 @@ in its own motion) is also lifted onto it: the ragdoll's soles and the skeleton'
 quite agree, and toes went up to 4 cm under the floor in transitions. A hand under the floor
 there is lifted onto it by the arm's IK, as a foot is: a fade between two poses whose hands both
 clear the floor can pass one under it, and a clip cast onto longer arms puts the hands a few cm
-under (README, Real mocap, swept). Knees a fade puts under the floor are left there: with the hip
-and the ankle where they are, a kneeling knee at the bottom of its circle about them can only move
-sideways, by far more than its depth, so the fix belongs in the fade.
+under (README, Real mocap, swept). Knees a fade puts under the floor cannot be lifted so: with the
+hip and the ankle where they are, a kneeling knee at the bottom of its circle about them can only
+move sideways, by far more than its depth. What is still under the floor after the feet and hands
+(a knee, a head through a fade of a roll, a kneeling clip cast onto longer shins) lifts the whole
+body instead (lift_onto_floor), eased in and out so the lift adds no pop.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from . import quat
 from .retarget import foot_points, joint_path, leg_length, local_rotations, lowest_foot_point, two_bone_ik
-from .skeleton import Motion, Skeleton
+from .skeleton import Motion, Skeleton, root_child
 
 CONTACT_HEIGHT = 0.03  # m over the floor: a foot point lower than this stands on it, fully from ...
 CONTACT_BAND = 0.02  # ... this much lower (toe clearance in a walk's swing is about 1.5 cm)
@@ -43,6 +46,8 @@ SOFT_REACH = 0.95  # of a leg's length: a held foot asking more of it reaches le
 MAX_OFFSET = 0.15  # leg lengths a foot is held away from where the motion puts it; beyond, it slides
 SETTLE = 1.0  # s after the reaction first looked at for the offsets to be let go (a walker's feet lift in it)
 SIDES = ("l", "r")
+LIFT_EASE = 0.15  # s over which the body is lifted onto the floor before and after the deepest frame
+LIFT_MIN = 0.002  # m: less under the floor than this is left as it is
 
 
 def hold_feet(
@@ -211,3 +216,44 @@ def _offsets(down: np.ndarray, slide: np.ndarray, fps: float, most: float) -> np
             held *= min(most, max(0.0, let_go)) / size
         offset[t] = held
     return offset
+
+
+def lift_onto_floor(motion: Motion, frames: tuple[int, int], floor: float) -> Motion:
+    """`motion` with the root raised wherever a joint or end site is under `floor` on frames
+    [first, last), by at least that depth: the depth's running maximum over LIFT_EASE either side,
+    smoothed, so the lift eases in and out (a lift of d over LIFT_EASE accelerates the body by
+    about d / LIFT_EASE^2: 4 m/s^2 for 10 cm) and a knee on the floor stays on it rather than
+    sinking. The lift may run on up to LIFT_EASE past `last` (easing out), never before `first`;
+    a ground root bone (root_child) is not the body and does not count."""
+    first, last = max(frames[0], 0), min(frames[1], motion.num_frames)
+    if last <= first:
+        return motion
+    depth = np.zeros(motion.num_frames)
+    depth[first:last] = np.maximum(floor - _lowest_points(motion.slice(first, last)), 0.0)
+    if depth.max() < LIFT_MIN:
+        return motion
+    reach = max(2, round(LIFT_EASE * motion.fps))
+    held = np.lib.stride_tricks.sliding_window_view(np.pad(depth, reach, mode="edge"), 2 * reach + 1).max(axis=1)
+    lift = _box(_box(held, reach // 2), reach // 2)  # two boxes within the held plateau: never under the depth
+    lift[:first] = 0.0
+    root = motion.root_pos.copy()
+    root[:, 2] += lift
+    return Motion(motion.skeleton, motion.fps, root, motion.local_rot, motion.local_pos)
+
+
+def _box(values: np.ndarray, half: int) -> np.ndarray:
+    """The running mean over 2 half + 1 frames, the ends held."""
+    return np.convolve(np.pad(values, half, mode="edge"), np.ones(2 * half + 1) / (2 * half + 1), mode="valid")
+
+
+def _lowest_points(motion: Motion) -> np.ndarray:
+    """(T,) the height of the lowest joint or end site per frame, a ground root bone left out."""
+    pos, rot = motion.global_transforms()
+    skeleton = motion.skeleton
+    body = pos[:, int(root_child(skeleton) is not None) :, 2].min(axis=1)
+    if not skeleton.end_sites:
+        return body
+    joints = np.array(list(skeleton.end_sites))
+    offsets = np.array([skeleton.end_sites[j] for j in joints])
+    tips = pos[:, joints] + quat.rotate(rot[:, joints], np.broadcast_to(offsets, pos[:, joints].shape))
+    return np.minimum(body, tips[..., 2].min(axis=1))

@@ -55,7 +55,7 @@ from .casting import Casting
 from .classes import CLASS_SLUGS
 from .errors import Cancelled, ImpactError, LibraryError, SkeletonError
 from .features import Body, FeatureReader
-from .footing import hold_feet
+from .footing import hold_feet, lift_onto_floor
 from .impact import Impact
 from .library import Library
 from .outcome import Outcome, collapsing, judge
@@ -111,8 +111,8 @@ class ReactionSettings:
     assist: the root assist that keeps the body up during CD (balance.py), None for the paper's
       pure PD tracking [RootAssist(): lift at most 0.3 of body weight, torques at most 0.4 m g h, let go
       past 20-40 degrees of tilt].
-    hold_feet: planted feet keep their footprints where the sources cross-fade (footing.py)
-      [True; False leaves the feet where the fades put them, sliding].
+    hold_feet: planted feet keep their footprints where the sources cross-fade, and the body stays
+      out of the floor (footing.py) [True; False leaves the feet where the fades put them, sliding].
     """
 
     reaction_window: float = 0.25
@@ -278,11 +278,14 @@ def react(
         out, resumed_at, resume_fade = _resume_or_hold(out, source or motion, int(np.ceil(impact.frame)), window,
                                                        ragdoll.roles, earliest)  # fmt: skip
         end_frame = resume_fade[0][1] - 1 if resume_fade else out.num_frames - 1
+    # B's own pose stays; a held last pose (a fall with nothing chained) is held lifted as it ends
+    reacting = (
+        int(np.ceil(impact.frame)) + 1,
+        end_frame + 1 if resumed_at is not None or match is None else out.num_frames,
+    )
     if settings.hold_feet:
         fades = [(frame_c, frame_c + steps + 1), *chain_fade, *resume_fade]
-        # B's own pose stays; a held last pose (a fall with nothing chained) is held lifted as it ends
-        last = end_frame + 1 if resumed_at is not None or match is None else out.num_frames
-        out = hold_feet(out, ragdoll.roles, (int(np.ceil(impact.frame)) + 1, last), fades, casting.sole)
+        out = lift_onto_floor(hold_feet(out, ragdoll.roles, reacting, fades, casting.sole), reacting, casting.sole)
     ground_root = static_root(source or motion)
     if ground_root is not None:
         out = hold_root(out, *ground_root)

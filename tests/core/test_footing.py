@@ -8,6 +8,8 @@
   no foot goes through the floor (without the hold, toes went up to 4 cm under).
 - A hand under the floor is lifted straight up onto it, keeping its turn; a hand already under it
   at the hit keeps that depth.
+- A body sunk into the floor (knees, hands, a head through a roll's fade) is lifted whole onto it,
+  eased in and out; frames before the reaction stay.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import pytest
 
 from reactive_anim.core import bvh, quat
 from reactive_anim.core.classifier import load_classifier
-from reactive_anim.core.footing import CATCH_UP_FINISH, MAX_OFFSET, hold_feet
+from reactive_anim.core.footing import CATCH_UP_FINISH, LIFT_EASE, MAX_OFFSET, hold_feet, lift_onto_floor
 from reactive_anim.core.impact import Impact
 from reactive_anim.core.library import load_library
 from reactive_anim.core.react import ReactionSettings, character_ragdoll, react
@@ -211,3 +213,24 @@ def _lowest_of_hand(motion: Motion, side: str) -> np.ndarray:
     """(T,) the lowest point of a hand: the wrist, the joints below it and their end sites."""
     pos, rot = motion.global_transforms()
     return lowest_foot_point(motion.skeleton, motion.skeleton.index(ROLES[f"wrist_{side}"]), pos, rot)
+
+
+def test_a_body_sunk_into_the_floor_is_lifted_onto_it_eased_in_and_out():
+    """The idle dropped 0.3 m into the floor over the drag's frames, from one frame to the next (as a
+    fade through a roll's headstand, only worse): every joint and end site is lifted onto the floor,
+    the root only moves up, by an eased lift (its acceleration about the depth over LIFT_EASE
+    squared, where the drop itself is 0.3 m in a frame), and the frames before the hold stay."""
+    sunk = replace(IDLE, root_pos=IDLE.root_pos - np.array([0.0, 0.0, 0.3]) * _drag_rows()[:, None])
+    floor, first = sole(IDLE), START - 20
+    pos = sunk.global_positions()
+    assert pos[START + FRAMES // 2, :, 2].min() < floor - 0.2  # the pose the test needs
+    lifted = lift_onto_floor(sunk, (first, IDLE.num_frames), floor)
+    new = lifted.global_positions()
+    assert new[first:, :, 2].min() > floor - 1e-9
+    assert np.array_equal(lifted.root_pos[:first], sunk.root_pos[:first])
+    assert np.array_equal(lifted.local_rot, sunk.local_rot)
+    lift = lifted.root_pos[:, 2] - sunk.root_pos[:, 2]
+    assert np.all(lift >= 0.0) and np.allclose(lifted.root_pos[:, :2], sunk.root_pos[:, :2])
+    accel = np.abs(np.diff(lift, 2)).max() * IDLE.fps**2
+    assert accel < 4.0 * 0.3 / LIFT_EASE**2 < 0.3 * IDLE.fps**2 / 4, accel
+    assert lift[first] == 0.0 and lift[-1] == 0.0  # eased back out after the drop
