@@ -34,3 +34,10 @@ def keyframes(action: bpy.types.Action) -> dict[tuple[str, int], bytes]:
             data.append(values.tobytes())
         out[(fc.data_path, fc.array_index)] = b"".join(data)
     return out
+
+
+def values_before(co: np.ndarray, frame: float) -> np.ndarray:
+    """The values of an F-curve's keys (co: frame, value pairs flattened, as foreach_get gives them)
+    on frames before `frame`."""
+    pairs = np.asarray(co).reshape(-1, 2)
+    return pairs[pairs[:, 0] < frame, 1]
