@@ -68,6 +68,33 @@ def blend(a: Motion, b: Motion, weights: np.ndarray) -> Motion:
     return Motion(a.skeleton, a.fps, root, rot, local_pos)
 
 
+def blend_travel(a: Motion, b: Motion, weights: np.ndarray, pelvis: int) -> tuple[Motion, tuple[float, float]]:
+    """`blend`, with the pelvis' travel over the floor faded by velocity rather than by position, and
+    the ground offset (x, y) by which `b` must be moved to carry on from the fade's last frame.
+
+    For the resume, where a reaction hands back to the motion it interrupted: a position fade from
+    a stumble into a walk placed at the fade's first frame pulls the body from one path onto the
+    other, and the pelvis gains the fade's curvature times the paths' gap, which grows with the
+    speed gap; a planted foot slides with it. Faded by velocity, each frame's step over the floor
+    is the weighted mix of the two sources' steps: the pace changes by the fade's slope times the
+    speed gap, never by the gap in place, and the body ends where the mixed steps take it; `b` goes
+    on from there. Heights stay faded by position (the floor is where both sources put it). Not
+    used for C..F: there the body would carry the hit's pace further than the clip's legs step,
+    and the feet skid."""
+    out = blend(a, b, weights)
+    w = np.asarray(weights, dtype=float)
+    if len(w) < 2:
+        return out, (0.0, 0.0)
+    pa, pb, po = (m.global_positions()[:, pelvis, :2] for m in (a, b, out))
+    mid = ((w[1:] + w[:-1]) / 2.0)[:, None]
+    steps = (1.0 - mid) * np.diff(pa, axis=0) + mid * np.diff(pb, axis=0)
+    shift = po[0] + np.concatenate([np.zeros((1, 2)), np.cumsum(steps, axis=0)]) - po
+    root = out.root_pos.copy()
+    root[:, :2] += shift
+    end = shift[-1] + po[-1] - pb[-1]  # zero when the fade's last frame is b's own
+    return Motion(out.skeleton, out.fps, root, out.local_rot, out.local_pos), (float(end[0]), float(end[1]))
+
+
 def _continuous_arcs(a: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.ndarray:
     """`b` (T, ..., 4) signed so that slerping from `a` takes, per joint, the shorter arc on the
     frame whose weight is nearest 1/2 and an arc continuous in time from there: the relative

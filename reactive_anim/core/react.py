@@ -16,8 +16,8 @@ What we add beyond the paper, and why:
 - A clip whose library entry names a `next` clip (a get-up after a fall, paper Fig. 3) is followed
   by it, placed where the fall ends and faded in over `chain_blend`.
 - Resume: when the reaction ends standing, the original motion resumes. Its best re-entry window
-  (Eq. 1, after B) is aligned with a window of the reaction's frames and faded in over it, so a
-  walker who stumbles walks on. The
+  (Eq. 1, after B) is aligned with a window of the reaction's frames and faded in over it, the
+  pelvis' travel faded by velocity (blend.blend_travel), so a walker who stumbles walks on. The
   fade may start from F on (after a get-up, at its end), where Eq. 1 plus a cost per second of
   waiting (RESUME_WAIT) is least: a walker walks on once the stumble's step has landed instead of
   standing through the clip's recovery, and a stand resumes where the clip has come to rest. A
@@ -49,7 +49,7 @@ from typing import Protocol
 import numpy as np
 
 from .balance import RootAssist
-from .blend import blend, fade_weights, place
+from .blend import blend, blend_travel, fade_weights, place
 from .capture import foot_bodies
 from .casting import Casting
 from .classes import CLASS_SLUGS
@@ -76,6 +76,7 @@ from .window import (
 
 RESUME_WAIT = 60.0  # Eq. 1 cost per second a reaction goes on before the motion resumes (_resume)
 RESUME_RATE = 30.0  # fade starts and re-entries tried per second (_resume)
+RESUME_SEARCH = 1.0  # s after the earliest fade start within which the fade may start (_resume)
 RESUME_TIE = 0.05  # Eq. 1 costs this close count as equal (_resume)
 STILL_KEPT = 0.5  # s of a clip's still tail played before the motion resumes or a get-up begins
 # The classes that keep the feet nearest each, nearest first, for a push that keeps its feet whose
@@ -583,21 +584,23 @@ def _resume(
 ) -> tuple[Motion, int, int]:
     """The source's best re-entry window (Eq. 1, at source frames from `first` to a second past the
     fade's start) aligned with `out`'s `window` frames from the best fade start (from `earliest` to
-    the last `window` frames), faded in over them and played on from there. The fade
+    the last `window` frames), faded in over them (blend_travel) and played on from there. The fade
     start weighs in: each second the reaction goes on past `earliest` costs RESUME_WAIT (a pushed
     walker whose step has landed walks on rather than standing through the clip's recovery, while
     a stand resumes where the clip has come to rest, which matches it far better). Starts and
     entries are tried every `stride` frames (about RESUME_RATE a second: a 120 fps take would
-    otherwise try 16 times as many pairs). Returns the motion, the source frame re-entered at and
-    the fade's first frame."""
+    otherwise try 16 times as many pairs), starts only within RESUME_SEARCH of `earliest` (waiting
+    longer costs more than the re-entries' Eq. 1 costs differ). Returns the motion, the source frame
+    re-entered at and the fade's first frame."""
     stride = max(1, round(out.fps / RESUME_RATE))
-    stop = min(source.num_frames, out.num_frames + round(source.fps))
-    tails = _rows(frame_features(out.slice(earliest, out.num_frames), roles), slice(None, None, stride))
+    latest = min(out.num_frames - window, earliest + round(RESUME_SEARCH * out.fps))
+    stop = min(source.num_frames, latest + round(source.fps))  # re-entries a second past the latest start
+    tails = _rows(frame_features(out.slice(earliest, latest + window), roles), slice(None, None, stride))
     candidates = _rows(frame_features(source.slice(first, stop), roles), slice(None, None, stride))
     span = max(2, round(window / stride))
     wp, wq = joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS)
     tried: list[tuple[float, int, int]] = [(np.inf, out.num_frames - window, first)]
-    for k in range((out.num_frames - window - earliest) // stride + 1):
+    for k in range((latest - earliest) // stride + 1):
         start = earliest + k * stride
         query = Query(_rows(tails, slice(k, k + span)))
         last = min(stop, start + round(source.fps)) - window  # re-entries up to a second past the start
@@ -614,8 +617,9 @@ def _resume(
     tail = out.slice(begin, begin + window)
     yaw, offset = _alignment(tail.slice(0, 1), source.slice(entry, entry + 1), roles)
     resumed = place(source.slice(entry, source.num_frames), yaw, offset)
-    faded = blend(tail, resumed.slice(0, window), fade_weights(window))
-    rest = resumed.slice(window, resumed.num_frames)
+    pelvis = out.skeleton.index(roles["pelvis"])
+    faded, carried = blend_travel(tail, resumed.slice(0, window), fade_weights(window), pelvis)
+    rest = place(resumed.slice(window, resumed.num_frames), 0.0, carried)
     return _join(out.slice(0, begin), faded, rest), entry, begin
 
 

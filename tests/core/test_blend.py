@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from reactive_anim.core import bvh, quat
-from reactive_anim.core.blend import blend, fade_weights, place
+from reactive_anim.core.blend import blend, blend_travel, fade_weights, place
 from reactive_anim.core.errors import SkeletonError
 from reactive_anim.core.skeleton import Motion, Skeleton
 from tests.support.mocap import REPO
@@ -40,6 +40,32 @@ def test_blend_equals_each_motion_at_its_end_and_lies_between(walk) -> None:
 def test_blend_refuses_other_skeletons_or_lengths(walk) -> None:
     with pytest.raises(SkeletonError, match="equal lengths"):
         blend(walk.slice(0, 10), walk.slice(0, 11), fade_weights(10))
+
+
+def test_a_travel_fade_changes_pace_by_the_speed_gap_and_the_next_source_carries_on(walk) -> None:
+    """The walk faded into itself standing still 0.5 m behind: a position fade drags the pelvis back
+    onto the still one's spot, a travel fade lets it slow down where it is. The pelvis' largest
+    acceleration over the floor is the fade's slope times the speed gap (smootherstep: 1.875 / T),
+    and the offset returned puts the still source's last frame where the fade ended."""
+    fps, frames = walk.fps, 9
+    pelvis = walk.skeleton.index("pelvis")
+    moving = walk.slice(40, 40 + frames)
+    still = Motion(walk.skeleton, fps, np.repeat(moving.root_pos[:1] - [[0.5, 0.0, 0.0]], frames, axis=0),
+                   np.repeat(moving.local_rot[:1], frames, axis=0))  # fmt: skip
+    w = fade_weights(frames)
+    speed = np.linalg.norm(np.diff(moving.global_positions()[:, pelvis, :2], axis=0), axis=1).mean() * fps
+
+    def floor_accel(m: Motion) -> float:
+        p = m.global_positions()[:, pelvis, :2]
+        return float(np.linalg.norm(np.diff(p, 2, axis=0), axis=1).max() * fps * fps)
+
+    travelled, carried = blend_travel(moving, still, w, pelvis)
+    assert floor_accel(travelled) <= 1.3 * 1.875 * speed / ((frames - 1) / fps)
+    assert floor_accel(blend(moving, still, w)) > 2.0 * floor_accel(travelled)
+    end = travelled.global_positions()[-1, pelvis, :2]
+    assert np.allclose(end, still.global_positions()[-1, pelvis, :2] + carried, atol=1e-9)
+    assert np.linalg.norm(carried) > 0.5  # it went on forward rather than back to the still spot
+    assert np.allclose(travelled.global_positions()[-1, :, 2], still.global_positions()[-1, :, 2])  # heights faded
 
 
 def test_place_turns_and_moves_the_whole_motion_rigidly(walk) -> None:
