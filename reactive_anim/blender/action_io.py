@@ -709,6 +709,10 @@ def _copy_settings(source: Any, target: Any) -> None:
     for prop in source.bl_rna.properties:
         if not prop.is_readonly and prop.type not in {"POINTER", "COLLECTION"}:
             setattr(target, prop.identifier, getattr(source, prop.identifier))
-    for point in getattr(source, "control_points", ()):
-        added = target.control_points.add(point.frame)
-        added.min, added.max = point.min, point.max
+    points = list(getattr(source, "control_points", ()))
+    for point in points:
+        target.control_points.add(point.frame)
+    # Set in bulk: assigned one by one, each value runs the modifier's update on the control point,
+    # which Blender reads as a whole modifier past the point's 16 bytes (a segfault, seen on 5.1).
+    for field in ("min", "max") if points else ():
+        target.control_points.foreach_set(field, [getattr(point, field) for point in points])

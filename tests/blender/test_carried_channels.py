@@ -319,8 +319,9 @@ def test_write_motion_carries_curves_with_every_setting(empty_scene):
     generator.coefficients = (0.5, 0.25, -0.1)
     envelope = y.modifiers.new("ENVELOPE")
     envelope.reference_value = 0.5
-    point = envelope.control_points.add(3.0)
-    point.min, point.max = -1.0, 2.0
+    envelope.control_points.add(3.0)
+    envelope.control_points.foreach_set("min", [-1.0])  # in bulk, as action_io._copy_settings sets them
+    envelope.control_points.foreach_set("max", [2.0])
     stepped = y.modifiers.new("STEPPED")
     stepped.frame_step, stepped.use_restricted_range, stepped.frame_start, stepped.frame_end = 2.0, True, 2.0, 7.0
     limits = z.modifiers.new("LIMITS")
