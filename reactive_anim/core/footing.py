@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import quat
 from .retarget import foot_points, joint_path, leg_length, local_rotations, lowest_foot_point, two_bone_ik
 from .skeleton import Motion, Skeleton, root_child
 
@@ -249,11 +248,4 @@ def _box(values: np.ndarray, half: int) -> np.ndarray:
 def _lowest_points(motion: Motion) -> np.ndarray:
     """(T,) the height of the lowest joint or end site per frame, a ground root bone left out."""
     pos, rot = motion.global_transforms()
-    skeleton = motion.skeleton
-    body = pos[:, int(root_child(skeleton) is not None) :, 2].min(axis=1)
-    if not skeleton.end_sites:
-        return body
-    joints = np.array(list(skeleton.end_sites))
-    offsets = np.array([skeleton.end_sites[j] for j in joints])
-    tips = pos[:, joints] + quat.rotate(rot[:, joints], np.broadcast_to(offsets, pos[:, joints].shape))
-    return np.minimum(body, tips[..., 2].min(axis=1))
+    return lowest_foot_point(motion.skeleton, root_child(motion.skeleton) or 0, pos, rot)

@@ -1,32 +1,8 @@
-"""Blender-layer tests: the real bpy module in background mode, reset before every test.
-
-BLENDER_USER_RESOURCES points at a temporary folder before bpy is imported, so nothing the tests
-do lands in the user's Blender configuration.
-"""
+"""Blender-layer tests: the real bpy module in background mode, reset before every test
+(tests/support/blender_session.py)."""
 
 from __future__ import annotations
 
-import os
-import tempfile
+from tests.support.blender_session import addon_registered, empty_scene
 
-os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="reactive_anim_test_blender_"))
-
-import bpy  # must come after the environment variable
-import pytest
-
-import reactive_anim
-
-
-@pytest.fixture(scope="session", autouse=True)
-def addon_registered():
-    """The add-on from this checkout, registered once for the session."""
-    reactive_anim.register()
-    yield
-    reactive_anim.unregister()
-
-
-@pytest.fixture(autouse=True)
-def empty_scene():
-    """A fresh empty Blender before each test (add-on classes stay registered)."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    yield bpy.context.scene
+__all__ = ["addon_registered", "empty_scene"]  # the session's fixtures, for pytest to find here

@@ -10,35 +10,18 @@ every key of every reacted action.
 
 from __future__ import annotations
 
-import os
-import tempfile
-
-os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="reactive_anim_test_farm_"))
-
-import bpy  # must come after the environment variable
 import pytest
 
-import reactive_anim
-from tests.farm.support import INPUTS, bake_here, reacted_keys, scene_file
+from tests.support.blender_session import addon_registered, empty_scene
 
-
-@pytest.fixture(scope="session", autouse=True)
-def addon_registered():
-    """The add-on from this checkout, registered once for the session."""
-    reactive_anim.register()
-    yield
-    reactive_anim.unregister()
-
-
-@pytest.fixture(autouse=True)
-def empty_scene():
-    """A fresh empty Blender before each test (add-on classes stay registered)."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+__all__ = ["addon_registered", "empty_scene"]  # the session's fixtures, for pytest to find here
 
 
 @pytest.fixture(scope="session")
 def inputs(tmp_path_factory: pytest.TempPathFactory) -> list:
     """Six .blend files with impact markers, in a folder of their own."""
+    from tests.farm.support import INPUTS, scene_file  # bpy is imported once the session is set up
+
     folder = tmp_path_factory.mktemp("inputs")
     return [scene_file(folder / f"shot_{k}.blend", first_frame=31 + 12 * k) for k in range(INPUTS)]
 
@@ -46,6 +29,8 @@ def inputs(tmp_path_factory: pytest.TempPathFactory) -> list:
 @pytest.fixture(scope="session")
 def reference(inputs: list, tmp_path_factory: pytest.TempPathFactory) -> dict:
     """The inputs baked one after another in one process: output name -> its reacted keys."""
+    from tests.farm.support import bake_here, reacted_keys
+
     out = tmp_path_factory.mktemp("reference")
     done = bake_here(*map(str, inputs), "--out-dir", str(out))
     assert done.returncode == 0, done.stderr
