@@ -129,14 +129,17 @@ def collapsing(body: Body, com: np.ndarray, com_velocity: np.ndarray, floor: flo
     return bool(com[2] - floor < COLLAPSE_HEIGHT * body.leg_length and com_velocity[2] < -COLLAPSE_SPEED)
 
 
-def judge(body: Body, state: ReactionState, window: float = REACTION_WINDOW) -> Outcome:
-    """The reaction class of a reaction state (see the module docstring); window: C - B in seconds."""
+def judge(body: Body, state: ReactionState, window: float = REACTION_WINDOW, *, going_down: bool = False) -> Outcome:
+    """The reaction class of a reaction state (see the module docstring); window: C - B in seconds.
+    going_down: the caller knows the body is on its way to the floor whatever the state at C says
+    (react._going_down: an earlier fall still playing), so the verdict is a fall."""
     shift = state.xcom_departure()
     norm = float(np.linalg.norm(shift))
     excess = norm - state.reach()
     omega = state.omega()
     sinking = collapsing(body, state.com_c, state.com_velocity, state.floor)
-    steps = None if state.support.down or sinking else _steps_to_capture(excess, omega, body.leg_length, window)
+    falls = going_down or state.support.down or sinking
+    steps = None if falls else _steps_to_capture(excess, omega, body.leg_length, window)
     frame = state.facing(body)[:2, :2]
     local = frame @ shift
     direction = _direction(local)

@@ -58,7 +58,7 @@ from .features import Body, FeatureReader
 from .footing import hold_feet, lift_onto_floor
 from .impact import Impact
 from .library import Library
-from .outcome import Outcome, collapsing, judge
+from .outcome import COLLAPSE_HEIGHT, Outcome, collapsing, judge
 from .ragdoll import Ragdoll, build_ragdoll
 from .search import Match, search, search_with_fallback
 from .simulate import SimResult, Workspace, simulate_impact, track
@@ -78,6 +78,8 @@ RESUME_WAIT = 60.0  # Eq. 1 cost per second a reaction goes on before the motion
 RESUME_RATE = 30.0  # fade starts and re-entries tried per second (_resume)
 RESUME_SEARCH = 1.0  # s after the earliest fade start within which the fade may start (_resume)
 RESUME_TIE = 0.05  # Eq. 1 costs this close count as equal (_resume)
+DOWN_AHEAD = 0.5  # s after C within which the motion being played reaching the floor counts (_going_down)
+DOWN_HEIGHT = 0.5  # leg lengths: a pelvis this low over the floor sits, kneels or lies (_going_down)
 STILL_KEPT = 0.5  # s of a clip's still tail played before the motion resumes or a get-up begins
 # The classes that keep the feet nearest each, nearest first, for a push that keeps its feet whose
 # class the library lacks: the same way with more or fewer steps, then a sway. Not a step the other
@@ -98,7 +100,8 @@ class ReactionSettings:
     """How a reaction is made; defaults in brackets.
 
     reaction_window: BC, seconds of free physics after the hit [0.25, a human reaction time].
-    transition: C to F, seconds of PD tracking faded into the clip [0.33].
+    transition: C to F, seconds of PD tracking faded into the clip [0.5: against a third of a second,
+      the fade's pops and a walker's stops are fewer (tools/bench.py quality), its feet skid more].
     profile: the ragdoll's joint profile, "anatomical" or "paper" (ragdoll.py) ["anatomical"].
     search_threshold: Eq. 1 cost above which a class's best window passes the search on to the
       next probable class; when none is within it, the most probable class's best window is used
@@ -117,7 +120,7 @@ class ReactionSettings:
     """
 
     reaction_window: float = 0.25
-    transition: float = 0.33
+    transition: float = 0.5
     profile: str = "anatomical"
     search_threshold: float = 40.0
     min_probability: float = 0.1
@@ -517,15 +520,28 @@ def _going_down(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact,
         return None
     body = Body.of(ragdoll.skeleton, ragdoll.roles)
     on_floor = np.delete(bc.contacts[-1], foot_bodies(ragdoll)).any()
-    if not (on_floor or collapsing(body, bc.com[-1], bc.com_velocity[-1], bc.floor)):
+    low = bc.com[-1][2] - bc.floor < COLLAPSE_HEIGHT * body.leg_length
+    played_down = low and _played_down(motion, int(bc.frames[-1]), body, bc.floor)
+    if not (on_floor or played_down or collapsing(body, bc.com[-1], bc.com_velocity[-1], bc.floor)):
         return None
-    return _judge(motion, bc, ragdoll, impact).reaction
+    return _judge(motion, bc, ragdoll, impact, going_down=played_down).reaction
 
 
-def _judge(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact) -> Outcome:
+def _played_down(motion: Motion, frame_c: int, body: Body, floor: float) -> bool:
+    """Whether the motion being played sits, kneels or lies within DOWN_AHEAD of C: an earlier
+    fall still playing. A push during it lands on a body already low; the ragdoll bouncing off the
+    floor in BC can be rising at C (a walk pushed into a backward sit, pushed again as it went
+    down: 0.49 m at +0.7 m/s) and was judged a step that stood the falling body up."""
+    ahead = motion.slice(frame_c, min(frame_c + round(DOWN_AHEAD * motion.fps) + 1, motion.num_frames))
+    pelvis = ahead.global_positions()[:, body.joints["pelvis"], 2]
+    return bool(pelvis.min() - floor < DOWN_HEIGHT * body.leg_length)
+
+
+def _judge(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact, *, going_down: bool = False) -> Outcome:
     """The outcome rule's verdict on the simulated state at C (outcome.judge)."""
     reader = FeatureReader(ragdoll)
-    return judge(reader.body, reader.simulated(motion, bc), (bc.frames[-1] - impact.frame) / motion.fps)
+    window = (bc.frames[-1] - impact.frame) / motion.fps
+    return judge(reader.body, reader.simulated(motion, bc), window, going_down=going_down)
 
 
 def _chain(

@@ -29,7 +29,7 @@ def test_bake_writes_a_new_action_and_leaves_the_original_as_it_was(empty_scene)
     assert blend_snapshot()["markers"] == markers_before
     # keys on every frame of the reacted motion, on every curve
     first, last = round(reacted.frame_range[0]), round(reacted.frame_range[1])
-    assert first == 1 and last > 264
+    assert first == 1 and last >= 264  # the walk's frames at least (a reaction may play past its end)
     curves = fcurves(reacted)
     keyed = {(fc.data_path, fc.array_index) for fc in curves}
     quaternions = {(f'pose.bones["{b.name}"].rotation_quaternion', i) for b in rig.data.bones for i in range(4)}
