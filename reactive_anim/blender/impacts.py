@@ -23,18 +23,17 @@ from typing import cast
 import bpy
 from bpy.props import EnumProperty, FloatProperty, FloatVectorProperty, PointerProperty, StringProperty
 
-from ..core.classes import CLASS_SLUGS
+from ..core.classes import CLASS_SLUGS, CLASSES
 from ..core.errors import ImpactError, SkeletonError
 from ..core.impact import Impact
 
 AUTO = "auto"
 DEFAULT_STRENGTH = 100.0  # N·s, a strong push (core/impact.py gives the scale)
 
-# Enum items carry explicit numbers: a .blend stores an enum by number, so the numbers must never
-# change when items are added or reordered. 0 is "let the classifier decide".
+# Enum items carry explicit numbers: a .blend stores an enum by number, so each class's number is its
+# fixed classes.ReactionClass.enum_id, whatever the table's order. 0 is "let the classifier decide".
 REACTION_ITEMS = [(AUTO, "Automatic", "The classifier picks the reaction class", 0)] + [
-    (slug, slug.replace("_", " ").capitalize(), f"Force the '{slug}' reaction class", k + 1)
-    for k, slug in enumerate(CLASS_SLUGS)
+    (c.slug, c.label, f"Force the '{c.slug}' reaction class", c.enum_id) for c in CLASSES
 ]
 _REACTION_NUMBERS = {item[3] for item in REACTION_ITEMS}
 

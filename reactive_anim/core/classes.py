@@ -1,12 +1,65 @@
-"""The paper's 10 reaction classes (section 2.3), as stable slugs.
+"""The reaction classes: the paper's 10 (section 2.3), one table, one row each.
 
-The order is the paper's (one step forward ... fall sideways to the knees); the library groups its
-clips in this order and the classifier's outputs follow it.
+The table's order is the paper's (one step forward ... fall sideways to the knees); the library
+groups its clips in this order and the classifier's probabilities follow it. Everything else a
+caller needs about a class (is it a fall, which way does the body go) is read from its row, not
+from the slug's spelling.
 """
 
 from __future__ import annotations
 
-CLASS_SLUGS: tuple[str, ...] = (
-    "step_forward", "steps_forward", "step_back", "steps_back", "sway_balance",
-    "fall_forward_roll", "fall_forward_hands", "fall_backward_sit", "fall_backward_hands", "fall_side_knees",
-)  # fmt: skip
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class ReactionClass:
+    """One reaction class.
+
+    slug: its name in library manifests, ONNX models, .blend files and messages.
+    family: "step" (one or more corrective steps), "sway" (balance kept on planted feet) or "fall".
+    way: where the body goes, relative to its facing at the push: "forward", "backward", "side",
+      or "" for a sway, which keeps its place.
+    enum_id: the number a .blend stores for a marker's forced reaction (blender/impacts.py): fixed
+      once given, never reused or renumbered, new classes take the next free number; 0 is
+      "automatic". Position in the table is not the id, so the table may be reordered.
+    """
+
+    slug: str
+    family: str
+    way: str
+    enum_id: int
+
+    @property
+    def is_fall(self) -> bool:
+        return self.family == "fall"
+
+    @property
+    def label(self) -> str:
+        """The name a UI shows: "Fall forward roll"."""
+        return self.slug.replace("_", " ").capitalize()
+
+
+CLASSES: tuple[ReactionClass, ...] = (
+    ReactionClass("step_forward", "step", "forward", 1),
+    ReactionClass("steps_forward", "step", "forward", 2),
+    ReactionClass("step_back", "step", "backward", 3),
+    ReactionClass("steps_back", "step", "backward", 4),
+    ReactionClass("sway_balance", "sway", "", 5),
+    ReactionClass("fall_forward_roll", "fall", "forward", 6),
+    ReactionClass("fall_forward_hands", "fall", "forward", 7),
+    ReactionClass("fall_backward_sit", "fall", "backward", 8),
+    ReactionClass("fall_backward_hands", "fall", "backward", 9),
+    ReactionClass("fall_side_knees", "fall", "side", 10),
+)
+CLASS_SLUGS: tuple[str, ...] = tuple(c.slug for c in CLASSES)
+_BY_SLUG = {c.slug: c for c in CLASSES}
+
+
+def reaction_class(slug: str) -> ReactionClass:
+    """The row of `slug` (KeyError for a slug that is no class: callers check CLASS_SLUGS first
+    where the slug comes from a user)."""
+    return _BY_SLUG[slug]
+
+
+def is_fall(slug: str) -> bool:
+    return _BY_SLUG[slug].is_fall

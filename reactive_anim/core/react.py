@@ -52,7 +52,7 @@ from .balance import RootAssist
 from .blend import blend, blend_travel, fade_weights, place
 from .capture import foot_bodies
 from .casting import Casting
-from .classes import CLASS_SLUGS
+from .classes import CLASS_SLUGS, is_fall
 from .errors import Cancelled, ImpactError, LibraryError, SkeletonError
 from .features import Body, FeatureReader
 from .footing import hold_feet, lift_onto_floor
@@ -275,7 +275,7 @@ def react(
         out = _join(before.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, min(stop, clip.num_frames)))
         clock.lap("blend")
         out, chained, chain_fade = _chain(out, casting, match, ragdoll.roles, settings)
-        standing = chained is not None or not match.reaction_class.startswith("fall_")
+        standing = chained is not None or not is_fall(match.reaction_class)
         window = max(2, round(library.window * motion.fps / library.fps)) if settings.resume and standing else 0
         # a stumble may hand back to the motion from F on; a get-up plays to its end first
         earliest = frame_c + steps if chained is None else out.num_frames - window
@@ -457,11 +457,11 @@ def _search(
     ranked = range(len(CLASS_SLUGS)) if probabilities is None else np.argsort(-probabilities, kind="stable")
     order = [CLASS_SLUGS[k] for k in ranked]
     if falling is not None:
-        falls = [falling] + [slug for slug in order if slug.startswith("fall_") and slug != falling]
+        falls = [falling] + [slug for slug in order if is_fall(slug) and slug != falling]
         return _Choice(search_with_fallback(library, query, falls, settings.search_threshold))
     predicted = None if probabilities is None else order[0]
     have = library.class_ranges
-    missing = predicted not in have if predicted is not None else not any(not _is_fall(s) for s in have)
+    missing = predicted not in have if predicted is not None else not any(not is_fall(s) for s in have)
     if missing and rule is not None:
         choice = _missing_class(library, query, predicted, rule(), settings)
         if choice is not None:
@@ -489,7 +489,7 @@ def _missing_class(
     rule says it falls (the probable classes the library has are searched, as before)."""
     if verdict.steps is None:  # the rule says it falls: any fall the library has will do
         return None
-    wanted = predicted if predicted is not None and not _is_fall(predicted) else verdict.reaction
+    wanted = predicted if predicted is not None and not is_fall(predicted) else verdict.reaction
     near = list(dict.fromkeys([wanted, *NEAR[wanted], verdict.reaction, *NEAR[verdict.reaction]]))
     usable = [slug for slug in near if slug in library.class_ranges]
     why = "the push does not fell the character"
@@ -498,14 +498,10 @@ def _missing_class(
         lacks = predicted or "step or sway"
         return _Choice(match, f"the library has no {lacks} clips: played {match.reaction_class}, the nearest it "
                               f"has that keeps the feet ({why})")  # fmt: skip
-    standing = [slug for slug in library.class_ranges if not _is_fall(slug)]
+    standing = [slug for slug in library.class_ranges if not is_fall(slug)]
     lacks = (", ".join(near[:-1]) + " or " if len(near) > 1 else "") + near[-1] if standing else "step or sway"
     return _Choice(None, f"the library has no {lacks} clips: kept the original motion, the hit simulated "
                          f"({why})", wanted)  # fmt: skip
-
-
-def _is_fall(slug: str) -> bool:
-    return slug.startswith("fall_")
 
 
 def _going_down(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact, library: Library) -> str | None:
@@ -516,7 +512,7 @@ def _going_down(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact,
     came out a sway at p = 1.00 and the character stood up out of the collapse (23 of 332 random
     pushes on the shared mocap went down at C and were given a step or a sway); a body lying on the
     floor was given a sway and stood up."""
-    if not any(slug.startswith("fall_") for slug in library.class_ranges):
+    if not any(is_fall(slug) for slug in library.class_ranges):
         return None
     body = Body.of(ragdoll.skeleton, ragdoll.roles)
     on_floor = np.delete(bc.contacts[-1], foot_bodies(ragdoll)).any()

@@ -8,6 +8,7 @@ import bpy
 import pytest
 
 from reactive_anim.blender import bvh_import, impacts
+from reactive_anim.core.classes import CLASSES
 from reactive_anim.core.errors import ImpactError
 from reactive_anim.core.impact import Impact
 
@@ -80,6 +81,13 @@ def test_markers_with_their_data_survive_save_and_reload(empty_scene, tmp_path):
     assert first == Impact(40.0, "chest", FORWARD, 250.0, "fall_forward_hands")
     assert (second.frame, second.bone, second.strength, second.reaction) == (129.0, "upper_arm.L", 55.5, None)
     assert second.direction == pytest.approx((0.6, 0.8, 0.0), abs=1e-7)  # stored as float32
+
+
+def test_a_forced_reaction_is_stored_as_its_classes_fixed_id(empty_scene):
+    """A .blend holds the enum's number: each class's is its table id (classes.ReactionClass.enum_id,
+    never renumbered), not its position, so adding a class changes no saved marker."""
+    items = impacts.REACTIVE_ANIM_PG_impact.bl_rna.properties["reaction"].enum_items
+    assert {item.identifier: item.value for item in items} == {"auto": 0} | {c.slug: c.enum_id for c in CLASSES}
 
 
 @pytest.mark.parametrize("frame", [0, 265, 400])

@@ -8,6 +8,7 @@ import pytest
 
 from reactive_anim.core import bvh, quat
 from reactive_anim.core.blend import place
+from reactive_anim.core.classes import CLASSES
 from reactive_anim.core.classifier import load_classifier
 from reactive_anim.core.errors import Cancelled, ImpactError, LibraryError
 from reactive_anim.core.footing import MAX_OFFSET
@@ -221,8 +222,8 @@ def test_settings_change_the_transition(walk, library, ragdoll) -> None:
     assert long.frame_f - long.frame_c == round(0.5 * walk.fps)
 
 
-FORWARD_CLASSES = {"step_forward", "steps_forward", "fall_forward_roll", "fall_forward_hands"}
-BACKWARD_CLASSES = {"step_back", "steps_back", "fall_backward_sit", "fall_backward_hands"}
+FORWARD_CLASSES = {c.slug for c in CLASSES if c.way == "forward"}
+BACKWARD_CLASSES = {c.slug for c in CLASSES if c.way == "backward"}
 
 
 @pytest.mark.parametrize(

@@ -39,6 +39,7 @@ import numpy as np
 import pytest
 
 from reactive_anim.core import bvh, quat
+from reactive_anim.core.classes import is_fall
 from reactive_anim.core.skeleton import Motion
 from tools.sample_clips import catalogue, falls
 from tools.sample_clips.skeleton import sample_skeleton
@@ -765,7 +766,7 @@ def test_falls_chain_to_the_getup_that_fits_how_they_end(library: dict) -> None:
         "fall_backward_sit": "getup_sitting.bvh",
     }
     for clip in library["clip"]:
-        if clip["class"].startswith("fall_"):
+        if is_fall(clip["class"]):
             assert clip.get("next", "").startswith("getup_"), clip
             if clip["class"] in expected:
                 assert clip["next"] == expected[clip["class"]], clip

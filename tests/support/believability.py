@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from reactive_anim.core import quat
+from reactive_anim.core.classes import reaction_class
 from reactive_anim.core.retarget import foot_points
 from reactive_anim.core.skeleton import Motion, root_child
 
@@ -45,10 +46,6 @@ STILL_SPEED = 0.25  # m/s: a pelvis slower than this over the floor stands still
 STILL_TIME = 0.2  # s: ... and this long is a visible stop
 CALIBRATION_JUMP = 20.0  # m/s: the core's rule (library.take_start): faster than any joint in a take
 SIDES = ("l", "r")
-FORWARD_CLASSES = ("step_forward", "steps_forward", "fall_forward_roll", "fall_forward_hands")
-BACKWARD_CLASSES = ("step_back", "steps_back", "fall_backward_sit", "fall_backward_hands")
-SIDE_CLASSES = ("fall_side_knees",)
-ANY_DIRECTION = ("sway_balance",)  # keeps balance where it stands: no direction to get wrong
 
 
 def stride_frames(fps: float, stride: float = STRIDE) -> int:
@@ -197,24 +194,13 @@ def push_side(direction: np.ndarray, forward: np.ndarray) -> str:
     return "right" if across > 0 else "left"
 
 
-def class_direction(slug: str) -> str:
-    """The way a reaction class goes: "forward", "backward", "side" or "any" (a sway keeps its place)."""
-    if slug in FORWARD_CLASSES:
-        return "forward"
-    if slug in BACKWARD_CLASSES:
-        return "backward"
-    if slug in SIDE_CLASSES:
-        return "side"
-    return "any"
-
-
 def right_direction(side: str, slug: str) -> bool:
     """Whether a reaction of class `slug` goes the way a push from `side` sends the body: from behind
     forward, from the front backward, from the left or right a side reaction; a sway (keeping
     balance where it stands, a standing body's side-step) is never the wrong way."""
-    way = class_direction(slug)
+    way = reaction_class(slug).way
     wanted = {"behind": "forward", "front": "backward"}.get(side, "side")
-    return way in (wanted, "any")
+    return way in (wanted, "")
 
 
 @dataclass

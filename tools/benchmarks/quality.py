@@ -32,6 +32,7 @@ import numpy as np
 
 from reactive_anim.core import bvh
 from reactive_anim.core.casting import Casting
+from reactive_anim.core.classes import is_fall
 from reactive_anim.core.classifier import load_classifier
 from reactive_anim.core.errors import ReactiveAnimError
 from reactive_anim.core.impact import Impact
@@ -433,7 +434,7 @@ def figures(rows: list[dict], refs: References, failures: int) -> list[Row]:
         add("momentum", "walkers pushed from behind ahead of unpushed at B + 0.5 s", 100 * share, "%",
             "0 cm (itself)", ">= 95 %", share >= GOALS["ahead_share"], reactions=len(behind),
             median_cm=round(bl.quantile([r["ahead"] for r in behind], 0.5) * 100, 1))  # fmt: skip
-    steps = [r for r in rows if r["kind"] == "walk" and not r["class"].startswith("fall_")]
+    steps = [r for r in rows if r["kind"] == "walk" and not is_fall(r["class"])]
     if steps:
         share = np.mean([r["still"] >= bl.STILL_TIME for r in steps])
         real_share = np.mean([r["real_still"] >= bl.STILL_TIME for r in steps])
@@ -485,7 +486,7 @@ SHEETS = {  # measure: (key in a row, larger is worse, frame key, only rows for 
     "seam_pelvis": ("seam_pelvis", True, "seam_at", None),
     "seam_move": ("seam_move", True, "seam_move_at", None),
     "momentum": ("ahead", False, "ahead_at", lambda r: r["kind"] == "walk" and r["side"] == "behind"),
-    "standing_still": ("still", True, "still_at", lambda r: r["kind"] == "walk" and not r["class"].startswith("fall_")),
+    "standing_still": ("still", True, "still_at", lambda r: r["kind"] == "walk" and not is_fall(r["class"])),
     "class_sense": ("wrong", True, "frame", None),
 }
 
