@@ -422,7 +422,7 @@ def parser() -> argparse.ArgumentParser:
     where.add_argument("--out-dir", type=Path, help="write <name>.reacted.blend here (default: beside each input)")
     where.add_argument("--overwrite", action="store_true", help="save the baked scene over each input file")
     bake.add_argument("--force", action="store_true", help="bake even a file whose output is complete for its inputs")
-    bake.add_argument("--report", type=Path, help="write one JSON line per file here (README: Batch on a farm)")
+    bake.add_argument("--report", type=Path, help="write one JSON line per file here (docs/command-line.md)")
     farm = bake.add_mutually_exclusive_group()
     farm.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="bake each file as a task on this Dask scheduler")
     farm.add_argument("--workers", type=_count, metavar="N", help="bake on a Dask cluster of N workers started here")

@@ -1,4 +1,4 @@
-"""Bake reactions into a new action, and clear a bake (DESIGN.md, "The Blender layer").
+"""Bake reactions into a new action, and clear a bake.
 
 A bake reads the armature's action (action_io.read_motion) and its impact markers (impacts.py),
 runs core.react.bake_reactions, and writes the reacted motion into a NEW action `<action>.reacted`,

@@ -9,7 +9,7 @@ bundled importer (io_anim_bvh, 4.5 and newer) gives the same file, so actions mo
 Blender's importer is no longer called. For a file our reader accepts it would add nothing a user
 of this add-on needs (its other options, Euler rotation modes, empties instead of bones, resampling
 to the scene's rate, stay in Blender's own File > Import) and it is far slower: it keys every value
-from Python (README, Benchmarks).
+from Python (docs/measurements.md).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Impact markers: scene timeline markers that carry an impact (DESIGN.md, "The Blender layer").
+"""Impact markers: scene timeline markers that carry an impact.
 
 A marker is an impact marker when its `reactive_anim` property group has a uid. The group holds what
 core.impact.Impact needs (bone, world direction, strength in N·s, optional reaction class) plus the

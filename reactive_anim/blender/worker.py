@@ -1,4 +1,4 @@
-"""A bake computed in a worker thread, so Blender's UI stays live (issue: "a bake that never freezes").
+"""A bake computed in a worker thread, so Blender's UI stays live.
 
 The main thread prepares a BakeJob (bake.prepare_bake reads the .blend) and hands it to a
 BackgroundBake; the thread runs only `BakeJob.run`, numpy in and numpy out, and talks back

@@ -1,4 +1,4 @@
-"""A character on another skeleton than the library's clips (issue: "any character").
+"""A character on another skeleton than the library's clips.
 
 The search compares joint rotations and positions, which mean the same only on one skeleton; so
 the character's query window is retargeted onto the library's skeleton (the first clip's) before

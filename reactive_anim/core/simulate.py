@@ -672,8 +672,7 @@ def _to_motion(
     What a body's joints cannot hold of the held frame (a single-hinge elbow or knee drops the
     forearm's twist and carrying angle) is kept as it is there, on top of the simulated rotation:
     `held_body_rot` (B, 4), the bodies of the held frame's qpos, rebuilt the same way, says how much,
-    so the output starts on the mocap's pose instead of jumping away from it at the impact (README,
-    The ragdoll)."""
+    so the output starts on the mocap's pose instead of jumping away from it at the impact (docs/method.md)."""
     skeleton = ragdoll.skeleton
     n = len(body_rot)
     local = np.broadcast_to(held.local_rot, (n,) + held.local_rot.shape).copy()

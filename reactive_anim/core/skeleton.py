@@ -1,6 +1,6 @@
 """Skeleton (joint hierarchy and rest offsets), Motion (per-frame joint rotations) and forward kinematics.
 
-Conventions (DESIGN.md): metres, Z up, quaternions (w, x, y, z). The rest pose has every joint
+Conventions: metres, Z up, quaternions (w, x, y, z). The rest pose has every joint
 rotation equal to identity, so rest offsets are expressed in world axes, as in BVH. A joint's local
 rotation is relative to its parent's frame; the global rotation of joint j is the product of the
 local rotations from the root down to j.

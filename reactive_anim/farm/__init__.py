@@ -1,5 +1,5 @@
 """Batch bakes at farm scale: `python -m reactive_anim bake FILES --scheduler tcp://HOST:PORT` or
-`--workers N` (README, "Batch on a farm").
+`--workers N` (docs/command-line.md).
 
 Modules: outputs (an output written whole and resumable: the atomic save, the hash of its inputs
 recorded inside it), report (one file's outcome, the summary row and the JSON line), task (one

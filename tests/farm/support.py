@@ -67,7 +67,7 @@ def partial_files(folder: Path) -> list[str]:
 @contextmanager
 def dask_cluster(folder: Path, workers: int) -> Iterator[str]:
     """`dask scheduler` on the loopback interface and `workers` x `dask worker --nworkers 1
-    --nthreads 1`, as the README starts them on a farm; yields the scheduler's address."""
+    --nthreads 1`, as docs/command-line.md starts them on a farm; yields the scheduler's address."""
     address_file = folder / "scheduler.json"
     quiet = {"env": ENVIRONMENT, "cwd": folder, "stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
     scheduler = [BIN / "dask", "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard"]

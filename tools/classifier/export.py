@@ -3,7 +3,7 @@
 Written with the `onnx` package, the only place that needs it (imported inside `write_onnx`, so
 importing this module, and everything at run time, works without it). The IR version comes from
 `helper.make_model_gen_version` for opset OPSET: the package's own default IR is newer than
-onnxruntime reads (DESIGN.md). The file describes itself in its metadata_props (METADATA_KEYS,
+onnxruntime reads (../shared/DESIGN.md). The file describes itself in its metadata_props (METADATA_KEYS,
 read by core.classifier): the class list, the feature names, the input normalisation
 (x - mean) / scale applied before the graph, and what it was trained on.
 """

@@ -15,7 +15,7 @@ The hits (frames on the timeline, from the action's first frame at the sample's 
   side_hit          a hard hit on the hips from the character's right: it falls sideways onto the
                     knees, gets up (the library chains a get-up) and walks on.
 Each names the class the demo expects. While no classifier model ships, the whole-library search
-alone picks by pose, not by push (DESIGN.md, "Library and classifier"), so the demo then forces
+alone picks by pose, not by push (../shared/DESIGN.md, "Library and classifier"), so the demo then forces
 the expected classes through the markers' reaction override and says so.
 
 Each impact also gets an arrow (an object, shown from shortly before the hit until the end of the
