@@ -20,7 +20,7 @@ in its own motion) is also lifted onto it: the ragdoll's soles and the skeleton'
 quite agree, and toes went up to 4 cm under the floor in transitions. A hand under the floor
 there is lifted onto it by the arm's IK, as a foot is: a fade between two poses whose hands both
 clear the floor can pass one under it, and a clip cast onto longer arms puts the hands a few cm
-under (README, Real mocap, swept). Knees a fade puts under the floor cannot be lifted so: with the
+under (docs/measurements.md). Knees a fade puts under the floor cannot be lifted so: with the
 hip and the ankle where they are, a kneeling knee at the bottom of its circle about them can only
 move sideways, by far more than its depth. What is still under the floor after the feet and hands
 (a knee, a head through a fade of a roll, a kneeling clip cast onto longer shins) lifts the whole
@@ -39,10 +39,13 @@ CONTACT_BAND = 0.02  # ... this much lower (toe clearance in a walk's swing is a
 LOWEST_SCALE = 0.003  # m: a foot point this much higher than its lowest counts 1/e as much for the slide
 SKIM_SPEED = 3.5  # m/s: a point faster than this does not stand, fully below ...
 SPEED_BAND = 1.0  # ... this much slower (a swing foot moves at 3-5 m/s; a blend slides it at 0.5-2.5)
-CATCH_UP_RATE = 12.0  # 1/s: in the air an offset shrinks by this fraction a second, smoothly (83 ms time constant) ...
+CATCH_UP_RATE = 7.0  # 1/s: in the air an offset shrinks by this fraction a second, smoothly (143 ms time constant) ...
 CATCH_UP_FINISH = 0.05  # m/s: ... and by this much more, so it ends (the last step is under a millimetre)
 SOFT_REACH = 0.95  # of a leg's length: a held foot asking more of it reaches less, smoothly (_eased_reach)
-MAX_OFFSET = 0.15  # leg lengths a foot is held away from where the motion puts it; beyond, it slides
+# leg lengths a foot is held away from where the motion puts it; beyond, it slides. A fade from a
+# walking stride into a clip's standing start or a side step's wide stance moves a foot that far;
+# a held foot costs some joint acceleration when it is let go (docs/measurements.md)
+MAX_OFFSET = 0.4
 SETTLE = 1.0  # s after the reaction first looked at for the offsets to be let go (a walker's feet lift in it)
 SIDES = ("l", "r")
 LIFT_EASE = 0.15  # s over which the body is lifted onto the floor before and after the deepest frame

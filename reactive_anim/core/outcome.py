@@ -64,12 +64,12 @@ CONSTANTS, with their reasons:
 DIRECTION, relative to the facing at B (the spine frame of features.py, in which the classifier
 sees the push; a hard off-centre push can spin the ragdoll half a turn by C, and a label in that
 frame would flip with it): d_xi within 45 deg
-of forward -> forward classes, of backward -> backward classes, otherwise side. The paper has no
-side-step class. A sideways push that steps can capture: a moving character (the motion's CoM
-faster than STANDING_SPEED) places its next steps wider and walks on (Hof 2008), so it gets the
-step class of the way the motion travels along its facing; a standing character side-steps under
-itself and stays up, which of the paper's strategies is `sway_balance` (keep balance, no fall).
-A sideways fall is `fall_side_knees`, the paper's only one.
+of forward -> forward classes, of backward -> backward classes, otherwise to the left or right. The
+paper has no side-step class; we add one per side (classes.py): a sideways push that steps can
+capture steps to that side, a standing character with a side step, a walker with its next steps
+placed out to that side (Hof 2008). It used to get the step class of the way the motion travels
+(a walker) or a sway (a stander), which an animator reads as the wrong way. A sideways fall is
+`fall_side_knees`, the paper's only one, either side.
 """
 
 from __future__ import annotations
@@ -90,7 +90,6 @@ FIRST_STEP_DELAY = 0.3  # s from the push to the first foot placement (Hof, Verm
 STEP_TIME = 0.3  # s per further step (same source)
 MAX_STEP_LENGTH = 1.0  # leg lengths (see the module docstring)
 FALL_FROUDE = 1.0  # v^2 / (g L) at the upper limit of walking (Alexander 1989)
-STANDING_SPEED = 0.2  # m/s: standing sways stay under 0.1; the slowest walks in ../shared/mocap move at 0.3-0.5
 SIDE_ANGLE = 45.0  # degrees off the facing axis beyond which a push counts as sideways
 MAX_STEPS = 8  # corrective steps counted before a push counts as not capturable (the series has converged)
 # A body whose centre of mass is already this low at C (leg lengths above the floor; standing is
@@ -107,7 +106,7 @@ class Outcome:
     """The rule's verdict and the numbers behind it.
 
     reaction: a CLASS_SLUGS entry. steps: corrective steps (0 = sway), None for a fall.
-    direction: "forward", "backward" or "side". xcom_shift: d_xi in the facing frame (forward,
+    direction: "forward", "backward", "left" or "right". xcom_shift: d_xi in the facing frame (forward,
     left), m. excess: e, m (negative: inside the support's reach). speed: the centre of mass's
     horizontal velocity along d_xi, m/s. down: a body other than the feet is on the floor at C.
     collapsing: the centre of mass is low and sinking at C (collapsing()).
@@ -144,10 +143,7 @@ def judge(body: Body, state: ReactionState, window: float = REACTION_WINDOW, *, 
     local = frame @ shift
     direction = _direction(local)
     speed = float(state.com_velocity[:2] @ shift / norm) if norm > 0.0 else 0.0
-    travel = state.motion_velocity[:2]
-    reaction = _reaction(
-        steps, direction, speed, body.leg_length, travel=(float(frame[0] @ travel), float(np.linalg.norm(travel)))
-    )
+    reaction = _reaction(steps, direction, speed, body.leg_length)
     return Outcome(reaction, steps, direction, local, excess, speed, state.support.down, sinking)
 
 
@@ -157,7 +153,7 @@ def _direction(local: np.ndarray) -> str:
         return "forward"
     if angle >= 180.0 - SIDE_ANGLE:
         return "backward"
-    return "side"
+    return "left" if local[1] > 0.0 else "right"
 
 
 def _steps_to_capture(excess: float, omega: float, leg: float, window: float) -> int | None:
@@ -173,25 +169,27 @@ def _steps_to_capture(excess: float, omega: float, leg: float, window: float) ->
     return None
 
 
-def _reaction(steps: int | None, direction: str, speed: float, leg: float, *, travel: tuple[float, float]) -> str:
-    """The class from the steps, the direction and the speeds (travel: the motion's velocity along
-    the facing and its horizontal speed)."""
+# The step classes by direction: one step, several (a side step class counts any number).
+STEP_CLASSES = {
+    "forward": ("step_forward", "steps_forward"),
+    "backward": ("step_back", "steps_back"),
+    "left": ("step_left", "step_left"),
+    "right": ("step_right", "step_right"),
+}
+
+
+def _reaction(steps: int | None, direction: str, speed: float, leg: float) -> str:
+    """The class from the steps, the direction and the speed along the departure."""
     if steps == 0:
         return "sway_balance"
     if steps is None:
         fast = speed > 0.0 and speed**2 >= FALL_FROUDE * GRAVITY * leg
-        return {
-            "forward": "fall_forward_roll" if fast else "fall_forward_hands",
-            "backward": "fall_backward_hands" if fast else "fall_backward_sit",
-            "side": "fall_side_knees",
-        }[direction]
-    if direction == "side":
-        along, motion_speed = travel
-        if motion_speed < STANDING_SPEED:
-            return "sway_balance"
-        direction = "forward" if along >= 0.0 else "backward"
-    name = "forward" if direction == "forward" else "back"
-    return f"step_{name}" if steps == 1 else f"steps_{name}"
+        if direction == "forward":
+            return "fall_forward_roll" if fast else "fall_forward_hands"
+        if direction == "backward":
+            return "fall_backward_hands" if fast else "fall_backward_sit"
+        return "fall_side_knees"
+    return STEP_CLASSES[direction][0 if steps == 1 else 1]
 
 
 def simulate_outcome(

@@ -90,6 +90,8 @@ NEAR: dict[str, tuple[str, ...]] = {
     "steps_forward": ("step_forward", "sway_balance"),
     "step_back": ("steps_back", "sway_balance"),
     "steps_back": ("step_back", "sway_balance"),
+    "step_left": ("sway_balance",),
+    "step_right": ("sway_balance",),
     "sway_balance": (),
 }
 KEPT_CLIP = "(the original motion)"  # Reaction.clip when the motion was kept

@@ -226,6 +226,7 @@ def test_class_sense() -> None:
     assert not bl.right_direction("behind", "step_back") and not bl.right_direction("front", "fall_forward_roll")
     assert bl.right_direction("left", "fall_side_knees") and bl.right_direction("right", "sway_balance")
     assert not bl.right_direction("left", "step_forward")
+    assert bl.right_direction("left", "step_right") and not bl.right_direction("left", "step_left")
 
 
 def test_reaction_seams() -> None:

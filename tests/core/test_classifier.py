@@ -44,7 +44,7 @@ def shipped() -> Classifier:
     return load_classifier()
 
 
-def test_the_shipped_model_loads_once_with_the_ten_classes(shipped):
+def test_the_shipped_model_loads_once_with_every_class(shipped):
     assert shipped.path == DEFAULT_MODEL
     assert shipped.classes == CLASS_SLUGS
     assert set(shipped.feature_names) <= set(EXTENDED_FEATURES)

@@ -259,10 +259,11 @@ def test_role_overrides_per_clip(tmp_path: Path) -> None:
     assert np.allclose(a.pos_local[:, others], b.pos_local[:, others])
 
 
-def test_class_slugs_are_the_papers_ten() -> None:
+def test_class_slugs_are_the_papers_ten_then_the_side_steps() -> None:
     assert CLASS_SLUGS == (
         "step_forward", "steps_forward", "step_back", "steps_back", "sway_balance",
         "fall_forward_roll", "fall_forward_hands", "fall_backward_sit", "fall_backward_hands", "fall_side_knees",
+        "step_left", "step_right",
     )  # fmt: skip
 
 

@@ -92,13 +92,16 @@ def test_moderate_pushes_are_caught_by_steps(speed, expected):
     assert judge(BODY, state(velocity=(speed, 0.0, 0.0))).reaction == expected
 
 
-def test_a_sideways_push_caught_by_steps_sways_a_standing_character_and_steps_a_walker_on():
+def test_a_sideways_push_caught_by_steps_steps_to_that_side_standing_or_walking():
+    """The character's left is +Y: pushed towards it, it steps left, whether it stood or walked (the
+    walker's own velocity is the motion's, so the departure is the push's alone)."""
     sideways = judge(BODY, state(velocity=(0.0, 1.0, 0.0)))
-    assert (sideways.direction, sideways.steps, sideways.reaction) == ("side", 1, "sway_balance")
+    assert (sideways.direction, sideways.steps, sideways.reaction) == ("left", 1, "step_left")
+    assert judge(BODY, state(velocity=(0.0, -1.0, 0.0))).reaction == "step_right"
     walking = state(velocity=(1.3, 1.0, 0.0), motion_velocity=(1.3, 0.0, 0.0))
-    assert judge(BODY, walking).reaction == "step_forward"
-    walking_back = state(velocity=(-1.0, 1.0, 0.0), motion_velocity=(-1.0, 0.0, 0.0))
-    assert judge(BODY, walking_back).reaction == "step_back"
+    assert judge(BODY, walking).reaction == "step_left"
+    walking_back = state(velocity=(-1.0, -1.0, 0.0), motion_velocity=(-1.0, 0.0, 0.0))
+    assert judge(BODY, walking_back).reaction == "step_right"
 
 
 def test_a_body_already_on_the_floor_has_fallen():
@@ -145,7 +148,7 @@ def _sector(degrees: float) -> str:
 
 def test_the_direction_sectors_are_45_degrees_either_side_of_the_facing_axis():
     angles = (0, 44, 46, 90, 134, 136, 180, -60)
-    expected = ["forward", "forward", "side", "side", "side", "backward", "backward", "side"]
+    expected = ["forward", "forward", "left", "left", "left", "backward", "backward", "right"]
     assert [_sector(a) for a in angles] == expected
 
 

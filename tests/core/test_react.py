@@ -8,7 +8,7 @@ import pytest
 
 from reactive_anim.core import bvh, quat
 from reactive_anim.core.blend import place
-from reactive_anim.core.classes import CLASSES
+from reactive_anim.core.classes import CLASS_SLUGS, CLASSES
 from reactive_anim.core.classifier import load_classifier
 from reactive_anim.core.errors import Cancelled, ImpactError, LibraryError
 from reactive_anim.core.footing import MAX_OFFSET
@@ -113,17 +113,23 @@ def test_a_reaction_plays_its_clip_and_ends_by_half_a_second_into_its_still_tail
 
 def test_a_pushed_walker_walks_on_once_its_step_has_landed(walk, library, ragdoll) -> None:
     """A nudge from behind or in front on the walk: the walk resumes where the stumble's step has
-    landed (react._resume weighs the wait), so the pelvis never stands nearly still (under 0.25 m/s
-    over the floor) for 0.2 s or more, as the sample step clips' stand would have it for 0.6-1.5 s."""
+    landed (react._resume weighs the wait), so from F on the pelvis never stands nearly still (under
+    0.25 m/s over the floor) for 0.2 s or more, as the sample step clips' stand would have it for
+    0.6-1.5 s. Before F it may: one of these ten plays a step that comes to a stand within the
+    half-second transition, 0.3 s before the walk picks up (the resume starts at F at the earliest;
+    starting it as the clip slows cost more seams than it saved stops, in the quality benchmark)."""
     pelvis, classifier = walk.skeleton.index(ragdoll.roles["pelvis"]), load_classifier()
-    for frame in (40, 70, 100):
+    stops = []
+    for frame in (40, 70, 100, 130, 160):  # later, the resumed walk reaches its last frame and holds it
         for sign in (1.0, -1.0):
             r = react(walk, Impact(frame, "chest", tuple(sign * forward(walk, frame)), 40.0), library, classifier,
                       ragdoll=ragdoll)  # fmt: skip
             assert not r.reaction_class.startswith("fall_") and r.resumed_at is not None, r.reaction_class
             speed = bl.horizontal_speed(r.motion.global_positions()[:, pelvis], walk.fps)
-            window = speed[frame : r.end_frame + round(0.5 * walk.fps)]
-            assert bl.longest_still(window, walk.fps) < 0.2, (frame, sign, r.clip, bl.longest_still(window, walk.fps))
+            after_f = bl.longest_still(speed[r.frame_f : r.end_frame + round(0.5 * walk.fps)], walk.fps)
+            assert after_f < 0.2, (frame, sign, r.clip, after_f)
+            stops.append(bl.longest_still(speed[frame : r.end_frame + round(0.5 * walk.fps)], walk.fps))
+    assert max(stops) < 0.4, np.round(stops, 2)
 
 
 @pytest.mark.parametrize(
@@ -319,25 +325,36 @@ def test_a_push_on_a_character_sitting_on_the_floor_starts_from_its_pose(library
     assert rise.max() < 0.15, rise.max()
 
 
+class Sure:
+    """A classifier sure of one class whatever it is shown. The shipped model, trained on pushes on
+    walks, runs and stands, said sway at p = 0.72-1.00 for states it never saw (a body low and
+    sinking, lying on the floor) before it was retrained with the side steps, which now call those
+    falls; the going-down rule must win whatever a classifier says."""
+
+    def __init__(self, slug: str) -> None:
+        self.probabilities = np.eye(len(CLASS_SLUGS))[CLASS_SLUGS.index(slug)]
+
+    def classify(self, before, bc, ragdoll) -> np.ndarray:
+        return self.probabilities
+
+
 def test_a_body_going_down_at_c_falls_instead_of_standing_up(library) -> None:
     """A Bandai Namco walk pushed on the thigh (a deep crouch as it steps back), then on the hand
     during that crouch: the weakened stance gives way, the hips at 0.28 m and sinking at 2 m/s at
-    C. The classifier, which never saw such a state, says sway at p = 1.00, and the character stood
-    up out of the collapse within the third of a second of the transition (hips back at 0.89 m,
-    walking on). Going down at C, the class is the outcome rule's fall: the hips come up no higher
-    than a kneeling body's through the transition (the clip's fall passes over the knees) and the
-    body ends on the floor before it gets up. The state needs the first reaction's transition at a
-    third of a second (with the default half second the crouch is tracked more slowly and the
-    classifier itself says fall).
+    C. A classifier that says sway (Sure) had the character stand up out of the collapse within
+    the third of a second of the transition (hips back at 0.89 m, walking on). Going down at C, the
+    class is the outcome rule's fall: the hips come up no higher than a kneeling body's through the
+    transition (the clip's fall passes over the knees) and the body ends on the floor before it
+    gets up. The state needs the first reaction's transition at a third of a second (with the
+    default half second the crouch is tracked more slowly).
     """
     motion = bvh.read_bvh(require_mocap("bandai_namco/dataset-2/dataset-2_walk_normal_001.bvh"))
     settings = ReactionSettings(transition=0.33)
     crouched = react(motion, Impact(80.0, "UpperLeg_L", (0.6, 0.77, 0.21), 150.0), library, load_classifier(),
                      settings).motion  # fmt: skip
-    pushed = react(crouched, Impact(90.0, "Hand_L", (-0.96, 0.24, 0.11), 60.0), library, load_classifier(),
+    pushed = react(crouched, Impact(90.0, "Hand_L", (-0.96, 0.24, 0.11), 60.0), library, Sure("sway_balance"),
                    settings, source=motion)  # fmt: skip
     assert pushed.going_down and pushed.reaction_class.startswith("fall_")
-    assert pushed.probabilities["sway_balance"] > 0.9  # what the classifier alone would have done
     hips = pushed.motion.global_positions()[:, pushed.motion.skeleton.index("Hips"), 2]
     assert hips[pushed.frame_c : pushed.frame_f + 1].max() < 0.7  # standing: 0.89
     assert hips[pushed.frame_f :].min() < 0.25 and pushed.chained is not None
@@ -345,11 +362,12 @@ def test_a_body_going_down_at_c_falls_instead_of_standing_up(library) -> None:
 
 def test_a_body_lying_on_the_floor_pushed_stays_down(library) -> None:
     """CMU 139_16 lies on the floor at frame 60 (before it gets up): a 10 N·s nudge on the chest.
-    The classifier, never shown a lying body, says sway (p = 0.72), which spliced a standing clip
-    onto a body on the floor; with a body other than the feet on the floor at C, the search looks
-    among the falls."""
+    A classifier that says sway (Sure; the shipped one did, at p = 0.72, before the side steps)
+    spliced a standing clip onto a body on the floor; with a body other than the feet on the floor
+    at C, the search looks among the falls, whatever the classifier says."""
     motion = bvh.read_bvh(require_mocap("cmu/139_16.bvh"))
     ragdoll = character_ragdoll(motion)
-    lying = react(motion, Impact(60.0, ragdoll.roles["chest"], (1.0, 0.0, 0.0), 10.0), library, load_classifier())
-    assert lying.going_down and lying.reaction_class.startswith("fall_")
-    assert max(lying.probabilities, key=lying.probabilities.__getitem__) == "sway_balance"
+    impact = Impact(60.0, ragdoll.roles["chest"], (1.0, 0.0, 0.0), 10.0)
+    for classifier in (Sure("sway_balance"), load_classifier()):
+        lying = react(motion, impact, library, classifier)
+        assert lying.going_down and lying.reaction_class.startswith("fall_")

@@ -1,4 +1,4 @@
-"""Believability measures: how a reaction compares with real capture (DESIGN.md, "Tests and
+"""Believability measures: how a reaction compares with real capture (../shared/DESIGN.md, "Tests and
 benchmarks"; the `quality` benchmark, tools/benchmarks/quality.py).
 
 Every measure is a small numpy function over positions a core Motion gives (forward kinematics:
@@ -196,11 +196,12 @@ def push_side(direction: np.ndarray, forward: np.ndarray) -> str:
 
 def right_direction(side: str, slug: str) -> bool:
     """Whether a reaction of class `slug` goes the way a push from `side` sends the body: from behind
-    forward, from the front backward, from the left or right a side reaction; a sway (keeping
-    balance where it stands, a standing body's side-step) is never the wrong way."""
+    forward, from the front backward, from the left to the right (a step right or the side fall,
+    which goes either way), from the right to the left; a sway (keeping balance where it stands) is
+    never the wrong way."""
     way = reaction_class(slug).way
-    wanted = {"behind": "forward", "front": "backward"}.get(side, "side")
-    return way in (wanted, "")
+    wanted = {"behind": "forward", "front": "backward", "left": "right", "right": "left"}[side]
+    return way in (wanted, "side", "") if wanted in ("left", "right") else way in (wanted, "")
 
 
 @dataclass

@@ -1,5 +1,5 @@
 """Believability: reactions an animator would keep, each figure beside the same measure on real
-capture and its goal (DESIGN.md, "Tests and benchmarks"; the measures are tests/support/believability.py).
+capture and its goal (../shared/DESIGN.md, "Tests and benchmarks"; the measures are tests/support/believability.py).
 
 Pushes: on the shared walks, runs and idles (../shared/mocap, every rig; test and benchmark data
 only), on the chest and the pelvis, from behind, the front, the left and the right (horizontal,

@@ -55,8 +55,8 @@ def library_toml() -> str:
         # The header of the committed sample_clips/library.toml, old tool path and all: change the
         # two together (the test wants this file byte for byte).
         "# The reaction library over the clips in this folder, written by python -m tools.sample_clips.",
-        "# One [[clip]] per reaction clip: file, class (a DESIGN.md slug), optional frames = [start, end]",
-        "# and optional next = the clip that follows it (a get-up after a fall).",
+        "# One [[clip]] per reaction clip: file, class (a slug of reactive_anim/core/classes.py), optional",
+        "# frames = [start, end] and optional next = the clip that follows it (a get-up after a fall).",
         "# [[chain]] tables list clips reached only through `next` (the get-ups); they are no class.",
         "",
     ]

@@ -1,5 +1,7 @@
 """Stepping reactions and sways: a pushed body recovers by the balance model (balance.py), with
-steps (step_forward, steps_forward, step_back, steps_back) or on planted feet (sway_balance).
+steps (step_forward, steps_forward, step_back, steps_back, step_left, step_right) or on planted
+feet (sway_balance). The side steps (beyond the paper's classes) step out with the foot on the side
+the body is pushed to, the other foot held where it stands: a side step and hold.
 
 A stepping reaction is a `Push` row of STEPS: the balance model decides where and when the feet
 land; the root follows the pendulum's centre of mass, the legs reach the planned ankles by IK, and
@@ -56,6 +58,12 @@ STEPS: dict[str, Push] = {
     "steps_back_1": Push(direction=180.0, speed=0.65, max_step=0.55, first="R"),
     "steps_back_2": Push(direction=165.0, speed=0.7, max_step=0.45, first="L", swing=0.25, pause=0.04),
     "steps_back_3": Push(direction=-160.0, speed=0.7, max_step=0.35, first="R", swing=0.22, pause=0.03),
+    "step_left_1": Push(direction=90.0, speed=0.6, max_step=0.6, first="L"),
+    "step_left_2": Push(direction=70.0, speed=0.75, max_step=0.6, first="L", react=0.12),
+    "step_left_3": Push(direction=110.0, speed=0.55, max_step=0.6, first="L", swing=0.34),
+    "step_right_1": Push(direction=-90.0, speed=0.6, max_step=0.6, first="R"),
+    "step_right_2": Push(direction=-70.0, speed=0.75, max_step=0.6, first="R", react=0.12),
+    "step_right_3": Push(direction=-110.0, speed=0.55, max_step=0.6, first="R", swing=0.34),
 }
 
 
@@ -68,13 +76,21 @@ FLUNG_FORWARD = pose(
 FLUNG_BACK = pose(
     pelvis_pitch=12.0, spine_pitch=18.0, neck_pitch=-6.0, arm_flex=70.0, arm_abd=35.0, elbow=30.0, wrist=-10.0
 )
-# Per unit of push to the character's left: bend the trunk right, fling the left arm out.
+# Per unit of push to the character's left: bend the trunk right, fling the left arm out; to its
+# right, the mirror image.
 FLUNG_LEFT = dict.fromkeys(PARAMS, 0.0) | {
     "spine_roll": -10.0,
     "pelvis_roll": 3.0,
     "arm_abd_L": 40.0,
     "arm_abd_R": -15.0,
     "arm_flex_L": 10.0,
+}
+FLUNG_RIGHT = dict.fromkeys(PARAMS, 0.0) | {
+    "spine_roll": 10.0,
+    "pelvis_roll": -3.0,
+    "arm_abd_R": 40.0,
+    "arm_abd_L": -15.0,
+    "arm_flex_R": 10.0,
 }
 
 
@@ -91,7 +107,8 @@ def step_clip(push: Push, plan: StepPlan | None = None) -> Motion:
     flung = (
         max(ahead, 0.0) * (pose_vector(FLUNG_FORWARD) - stand)
         + max(-ahead, 0.0) * (pose_vector(FLUNG_BACK) - stand)
-        + side * pose_vector(FLUNG_LEFT)
+        + max(side, 0.0) * pose_vector(FLUNG_LEFT)
+        + max(-side, 0.0) * pose_vector(FLUNG_RIGHT)
     )
     values = stand + plan.alarm[:, None] * flung
     values[:, PARAMS.index("x")] = plan.com[:, 0]
