@@ -378,16 +378,6 @@ def _print_table(outcomes: list[FileOutcome]) -> None:
     )
 
 
-def _train_command(args: argparse.Namespace) -> int:
-    """Train the reaction classifier: tools/train_classifier.py with the arguments after `train`
-    (from the repository, which holds tools/; the extension does not ship them)."""
-    try:
-        from tools.train_classifier import main as train
-    except ImportError:
-        raise ReactiveAnimError("`train` runs tools/train_classifier.py: run it from the repository root") from None
-    return train(args.arguments)
-
-
 def _unit(text: str) -> str | float:
     """A unit name, or a number of metres per file unit."""
     try:
@@ -427,11 +417,6 @@ def parser() -> argparse.ArgumentParser:
     farm.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="bake each file as a task on this Dask scheduler")
     farm.add_argument("--workers", type=_count, metavar="N", help="bake on a Dask cluster of N workers started here")
     bake.set_defaults(run=_bake_command)
-    train = commands.add_parser(
-        "train", prefix_chars="+", help="train the reaction classifier (python -m tools.train_classifier --help)"
-    )
-    train.add_argument("arguments", nargs=argparse.REMAINDER, help="passed on, e.g. --quick --clips walk.bvh")
-    train.set_defaults(run=_train_command)
     return p
 
 

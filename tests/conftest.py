@@ -1,4 +1,4 @@
-"""Makes the repository importable (reactive_anim, tests.support) without installing it."""
+"""Makes the repository importable (reactive_anim, tools, tests.support) without installing it."""
 
 from __future__ import annotations
 

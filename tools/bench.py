@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 # Run as a script, Python puts tools/ on sys.path, not the repository root: add the root, the one
-# path fix the tools make, so that tools.benchmarks, reactive_anim and tests.support import as
+# path fix the tools make, so that tools.benchmarks, tools.devkit and reactive_anim import as
 # packages. (Nothing else here: the package limits BLAS threads before numpy loads.)
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 

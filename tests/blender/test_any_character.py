@@ -14,7 +14,7 @@ from reactive_anim.core.casting import _sole
 from reactive_anim.core.roles import RIG_PRESETS, assign_roles
 from reactive_anim.core.skeleton import Skeleton
 from tests.support.mocap import require_mocap
-from tests.support.skeletons import WALK, role_bone_angles, turned_chain
+from tools.devkit.skeletons import WALK, role_bone_angles, turned_chain
 
 SHARED = ["cmu_iclone/002_01.bvh", "bandai_namco/dataset-1/dataset-1_walk_normal_001.bvh", "cmu/139_16.bvh"]
 # Sample bone -> Mixamo bone, role by role.

@@ -11,8 +11,8 @@ import pytest
 from reactive_anim.blender import action_io, armature_build, bvh_import
 from reactive_anim.core.errors import SkeletonError
 from reactive_anim.core.skeleton import Skeleton
-from tests.support.blender_bvh import import_with_blender
 from tests.support.mocap import require_mocap
+from tools.devkit.blender_bvh import import_with_blender
 
 WALK = Path(__file__).resolve().parents[2] / "sample_clips" / "walk.bvh"
 # CMU cgspeed (joints with zero OFFSETs: bones Blender lengthens), Bandai Namco (every joint

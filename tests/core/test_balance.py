@@ -1,7 +1,7 @@
 """Balance during CD (core/balance.py): the root assist keeps a tracked character up, a small push
 does not topple it, a large one still does, nothing skates or sinks. The sample walk and idle only.
 
-"Kept up": see tests/support/tracking.py (pelvis within 10 cm of the target's height, mean joint
+"Kept up": see tools/devkit/tracking.py (pelvis within 10 cm of the target's height, mean joint
 error under 5 cm).
 """
 
@@ -16,8 +16,8 @@ from reactive_anim.core.impact import Impact
 from reactive_anim.core.ragdoll import build_ragdoll
 from reactive_anim.core.simulate import SimResult, Workspace, mocap_qpos, simulate_impact, track
 from tests.support.mocap import REPO
-from tests.support.poses import ground_axes
-from tests.support.tracking import kept_up_seconds
+from tools.devkit.poses import ground_axes
+from tools.devkit.tracking import kept_up_seconds
 
 ASSIST = RootAssist()
 

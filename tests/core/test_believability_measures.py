@@ -1,4 +1,4 @@
-"""The believability measures (tests/support/believability.py) on constructed motions with known
+"""The believability measures (tools/devkit/believability.py) on constructed motions with known
 answers: the benchmark's figures are only as good as these."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import pytest
 
 from reactive_anim.core import quat
 from reactive_anim.core.skeleton import Motion, Skeleton
-from tests.support import believability as bl
+from tools.devkit import believability as bl
 
 FPS = 30.0
 # A stick body standing on the floor: pelvis 0.9 m up, hips below it, knees, ankles 8 cm up, toes in

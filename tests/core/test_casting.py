@@ -17,10 +17,10 @@ from reactive_anim.core.react import ReactionSettings, character_ragdoll, react
 from reactive_anim.core.roles import assign_roles
 from reactive_anim.core.search import search
 from reactive_anim.core.skeleton import Motion
-from tests.support.library_clips import write_toml
 from tests.support.mocap import REPO, require_mocap
-from tests.support.poses import limb_joints
-from tests.support.skeletons import WALK, t_pose_variant
+from tools.devkit.library_clips import write_toml
+from tools.devkit.poses import limb_joints
+from tools.devkit.skeletons import WALK, t_pose_variant
 
 PUSHES = [
     (50, "chest", (0.0, -1.0, 0.0), 120.0),

@@ -29,7 +29,7 @@ from reactive_anim.core.retarget import foot_points, leg_length, lowest_foot_poi
 from reactive_anim.core.roles import assign_roles
 from reactive_anim.core.skeleton import Motion
 from tests.support.mocap import REPO
-from tests.support.poses import ground_axes
+from tools.devkit.poses import ground_axes
 
 IDLE = bvh.read_bvh(REPO / "sample_clips" / "idle.bvh")
 WALK = bvh.read_bvh(REPO / "sample_clips" / "walk.bvh")

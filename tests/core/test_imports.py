@@ -1,6 +1,8 @@
-"""The import graph: no cycles among the modules of reactive_anim/ and tools/, and the core never
-imports Blender. Read from the source with ast (every import statement, including those inside
-functions, so a lazy import cannot hide a cycle), not by importing."""
+"""The import graph: no cycles among the modules of reactive_anim/, tools/ and tests/; the shipped
+package imports neither tools/ nor tests/, tools/ never imports tests/ (what both need is in
+tools/devkit); and the core never imports Blender. Read from the source with ast (every import
+statement, including those inside functions, so a lazy import cannot hide a cycle), not by
+importing."""
 
 from __future__ import annotations
 
@@ -11,7 +13,7 @@ import pytest
 
 from tests.support.mocap import REPO
 
-PACKAGES = ("reactive_anim", "tools")
+PACKAGES = ("reactive_anim", "tools", "tests")
 
 
 def _module_name(path: Path) -> str:
@@ -82,6 +84,31 @@ def test_the_graph_sees_the_core_modules() -> None:
 def test_no_import_cycles() -> None:
     cycle = _cycle(_graph())
     assert cycle is None, "import cycle: " + " -> ".join(cycle or [])
+
+
+# Who may not import whom: the extension ships reactive_anim/ alone, and the tools are run without
+# the tests (a benchmark on a machine that has only the repository's tools/).
+FORBIDDEN = {"reactive_anim": ("tools", "tests"), "tools": ("tests",)}
+
+
+@pytest.mark.parametrize("package", sorted(FORBIDDEN))
+def test_the_layers_import_downwards_only(package: str) -> None:
+    graph = _graph()
+    wrong = sorted(
+        f"{name} -> {target}"
+        for name, targets in graph.items()
+        if name.split(".")[0] == package
+        for target in targets
+        if target.split(".")[0] in FORBIDDEN[package]
+    )
+    assert not wrong, wrong
+
+
+def test_a_layer_breach_is_seen() -> None:
+    """A check on the walker: a module of tools importing tests would be found (the tests import
+    tools, the other way)."""
+    graph = _graph()
+    assert any(t.startswith("tools.") for name, targets in graph.items() if name.startswith("tests.") for t in targets)
 
 
 def test_a_cycle_is_found_when_there_is_one() -> None:

@@ -27,8 +27,8 @@ from reactive_anim.core.library import (
 from reactive_anim.core.search import search
 from reactive_anim.core.skeleton import Motion, Skeleton
 from reactive_anim.core.window import Query
-from tests.support.library_clips import make_clip, write_toml
 from tests.support.mocap import REPO
+from tools.devkit.library_clips import make_clip, write_toml
 
 
 @pytest.fixture

@@ -17,9 +17,9 @@ from reactive_anim.core.library import load_library
 from reactive_anim.core.react import STILL_KEPT, ReactionSettings, bake_reactions, character_ragdoll, react
 from reactive_anim.core.retarget import leg_length
 from reactive_anim.core.roles import assign_roles
-from tests.support import believability as bl
 from tests.support.mocap import REPO, require_mocap
-from tests.support.poses import ground_axes, leg_joints
+from tools.devkit import believability as bl
+from tools.devkit.poses import ground_axes, leg_joints
 
 B = 40  # a frame of the walk with a foot planted
 

@@ -28,7 +28,7 @@ from reactive_anim.core.library import Library, load_library
 from reactive_anim.core.react import KEPT_CLIP, ReactionSettings, character_ragdoll, react
 from reactive_anim.core.skeleton import Motion, frame_times
 from tests.support.mocap import REPO, require_mocap
-from tests.support.poses import ground_axes
+from tools.devkit.poses import ground_axes
 
 WALK = "bandai_namco/dataset-2/dataset-2_walk_normal_001.bvh"
 FALL_ON_FACE = "cmu/90_16.bvh"  # stands, leaps, falls forward onto the front, lies still

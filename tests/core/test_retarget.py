@@ -14,7 +14,7 @@ from reactive_anim.core.errors import SkeletonError
 from reactive_anim.core.roles import SIDES, assign_roles
 from reactive_anim.core.skeleton import Motion, Skeleton
 from tests.support.mocap import REPO, mocap_files
-from tests.support.skeletons import WALK, role_bone_angles, t_pose_variant
+from tools.devkit.skeletons import WALK, role_bone_angles, t_pose_variant
 
 SHARED = {
     "iclone": "cmu_iclone/002_01.bvh",

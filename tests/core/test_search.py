@@ -1,6 +1,6 @@
 """The jump search (core/search.py, paper 2.4, Eq. 1, Table 2): exact, alignment-invariant, fast.
 
-- Fast equals the one-candidate-at-a-time reference (tests/support/search_reference.py) in match and
+- Fast equals the one-candidate-at-a-time reference (tools/devkit/search_reference.py) in match and
   cost on random queries (synthetic library), real ones (shared mocap) and the pipeline's own (BC
   windows of pushes on the sample library), ties included, by either strategy (scan and walk) and
   narrowed to classes.
@@ -33,10 +33,10 @@ from reactive_anim.core.window import (
     query_from_motion,
     window_costs,
 )
-from tests.support.library_clips import make_clip, mocap_class, perturbed, write_toml
 from tests.support.mocap import MOCAP, REPO, mocap_files
-from tests.support.poses import ground_axes
-from tests.support.search_reference import reference_cost, reference_search
+from tools.devkit.library_clips import make_clip, mocap_class, perturbed, write_toml
+from tools.devkit.poses import ground_axes
+from tools.devkit.search_reference import reference_cost, reference_search
 
 STRATEGIES = search_index.STRATEGIES
 

@@ -23,9 +23,9 @@ from reactive_anim.core.window import (
     query_from_motion,
     window_costs,
 )
-from tests.support.library_clips import make_clip, perturbed, write_toml
 from tests.support.mocap import REPO
-from tests.support.poses import ground_axes
+from tools.devkit.library_clips import make_clip, perturbed, write_toml
+from tools.devkit.poses import ground_axes
 
 WP, WQ = joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS)
 

@@ -35,7 +35,7 @@ from reactive_anim.core.ragdoll import Ragdoll, build_ragdoll
 from reactive_anim.core.simulate import MAX_HIT_SPEED, SimResult, simulate_impact, track
 from reactive_anim.core.skeleton import Motion
 from tests.support.mocap import REPO
-from tests.support.poses import ground_axes
+from tools.devkit.poses import ground_axes
 
 SAMPLE_CLIPS = REPO / "sample_clips"
 UP = np.array([0.0, 0.0, 1.0])

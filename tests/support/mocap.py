@@ -1,4 +1,4 @@
-"""Where the real motion capture lives (../shared/mocap, test-only data) and a skip when it is absent."""
+"""The real motion capture (tools.devkit.mocap) and a skip when a file of it is absent."""
 
 from __future__ import annotations
 
@@ -6,13 +6,9 @@ from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[2]
-MOCAP = REPO.parent / "shared" / "mocap"
+from tools.devkit.mocap import MOCAP, REPO, mocap_files
 
-
-def mocap_files(pattern: str = "**/*.bvh") -> list[Path]:
-    """Real BVH files under ../shared/mocap (empty where ../shared is absent)."""
-    return sorted(MOCAP.glob(pattern)) if MOCAP.is_dir() else []
+__all__ = ["MOCAP", "REPO", "mocap_files", "require_mocap"]
 
 
 def require_mocap(relative: str) -> Path:

@@ -11,7 +11,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from tests.support.mocap import MOCAP, REPO
+from tools.devkit.mocap import MOCAP, REPO
 
 from .common import best_of, largest_mocap, report, skipped
 
@@ -56,7 +56,7 @@ def _bench_import_read(bpy, path: Path, label: str, *, runs: int, blender_runs: 
     are up to 40% slower while memory is first allocated, so ours, cheap, gets more runs)."""
     from reactive_anim.blender import action_io, bvh_import
     from reactive_anim.core import bvh
-    from tests.support.blender_bvh import import_with_blender
+    from tools.devkit.blender_bvh import import_with_blender
 
     def import_and_read(importer, evaluate: bool) -> tuple[float, float, int, int]:
         bpy.ops.wm.read_factory_settings(use_empty=True)

@@ -4,7 +4,7 @@ Z up)."""
 from __future__ import annotations
 
 from reactive_anim.core import bvh
-from tests.support.mocap import MOCAP
+from tools.devkit.mocap import MOCAP
 
 from .common import best_of, largest_mocap, report, skipped
 

@@ -19,8 +19,8 @@ from reactive_anim.core.library import load_library
 from reactive_anim.core.react import react
 from reactive_anim.core.roles import assign_roles
 from reactive_anim.core.skeleton import Motion
-from tests.support.mocap import MOCAP, REPO
-from tests.support.skeletons import WALK, t_pose_variant
+from tools.devkit.mocap import MOCAP, REPO
+from tools.devkit.skeletons import WALK, t_pose_variant
 
 from .common import report, skipped
 from .react import push_impacts

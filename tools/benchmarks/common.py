@@ -8,7 +8,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from tests.support.mocap import MOCAP, mocap_files
+from tools.devkit.mocap import MOCAP, mocap_files
 
 FIGURES: list[dict] = []
 

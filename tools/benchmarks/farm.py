@@ -23,7 +23,7 @@ import time
 from importlib.util import find_spec
 from pathlib import Path
 
-from tests.support.mocap import REPO
+from tools.devkit.mocap import REPO
 
 from .common import report
 

@@ -1,5 +1,5 @@
 """Believability: reactions an animator would keep, each figure beside the same measure on real
-capture and its goal (../shared/DESIGN.md, "Tests and benchmarks"; the measures are tests/support/believability.py).
+capture and its goal (../shared/DESIGN.md, "Tests and benchmarks"; the measures are tools/devkit/believability.py).
 
 Pushes: on the shared walks, runs and idles (../shared/mocap, every rig; test and benchmark data
 only), on the chest and the pelvis, from behind, the front, the left and the right (horizontal,
@@ -41,9 +41,9 @@ from reactive_anim.core.react import Reaction, ReactionSettings, character_ragdo
 from reactive_anim.core.retarget import joint_path
 from reactive_anim.core.simulate import Workspace
 from reactive_anim.core.skeleton import Motion, root_child
-from tests.support import believability as bl
-from tests.support.mocap import MOCAP, REPO, mocap_files
-from tests.support.poses import ground_axes
+from tools.devkit import believability as bl
+from tools.devkit.mocap import MOCAP, REPO, mocap_files
+from tools.devkit.poses import ground_axes
 from tools.sample_clips.sheets import draw_line, png_bytes
 
 from .common import report, skipped

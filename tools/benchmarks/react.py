@@ -21,8 +21,8 @@ from reactive_anim.core.library import load_library
 from reactive_anim.core.react import bake_reactions, character_ragdoll, react
 from reactive_anim.core.simulate import Workspace
 from reactive_anim.core.skeleton import Motion
-from tests.support.mocap import REPO
-from tests.support.poses import ground_axes
+from tools.devkit.mocap import REPO
+from tools.devkit.poses import ground_axes
 
 from .common import report
 

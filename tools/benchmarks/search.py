@@ -2,7 +2,7 @@
 
 Libraries: the sample library (sample_clips/library.toml, the bake's default) and a scaled library
 of at least 100,000 frames made from every clip in ../shared/mocap (test and benchmark data only;
-classes by file name, tests/support/library_clips.py's mocap_class): copies of the clips, each
+classes by file name, tools/devkit/library_clips.py's mocap_class): copies of the clips, each
 turned by a random yaw and moved on the ground, dealt round-robin over the 10 classes so that one
 class is a tenth of it. Without ../shared the scaled library and the shared walks are skipped, with
 the reason printed.
@@ -51,10 +51,10 @@ from reactive_anim.core.window import (
     window_costs,
     yaw_rotate,
 )
-from tests.support.library_clips import mocap_class, perturbed, write_toml
-from tests.support.mocap import MOCAP, REPO, mocap_files
-from tests.support.poses import ground_axes
-from tests.support.search_reference import reference_cost
+from tools.devkit.library_clips import mocap_class, perturbed, write_toml
+from tools.devkit.mocap import MOCAP, REPO, mocap_files
+from tools.devkit.poses import ground_axes
+from tools.devkit.search_reference import reference_cost
 
 from .common import report, skipped
 

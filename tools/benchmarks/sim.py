@@ -22,8 +22,8 @@ from reactive_anim.core.impact import Impact
 from reactive_anim.core.ragdoll import TIMESTEP, build_ragdoll
 from reactive_anim.core.react import ReactionSettings
 from reactive_anim.core.simulate import SimState, Workspace, simulate_impact, state_from_mocap, track
-from tests.support.mocap import MOCAP, REPO, mocap_files
-from tests.support.tracking import kept_up_seconds
+from tools.devkit.mocap import MOCAP, REPO, mocap_files
+from tools.devkit.tracking import kept_up_seconds
 
 from .common import best_of, report, skipped
 
@@ -90,7 +90,7 @@ def _bench_clip(label: str, path: Path, use_reference: bool) -> None:
 
 
 def _bench_tracking_hold() -> None:
-    """How long CD tracking keeps a character up (tests/support/tracking.py), pure PD (the paper)
+    """How long CD tracking keeps a character up (tools/devkit/tracking.py), pure PD (the paper)
     against PD with the root assist (balance.py), from 12 start frames of each clip: tells how long
     the transition may run, and what the assist buys."""
     clips = [REPO / "sample_clips" / "walk.bvh", REPO / "sample_clips" / "idle.bvh"]

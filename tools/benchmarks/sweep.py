@@ -28,7 +28,7 @@ from reactive_anim.core.impact import Impact
 from reactive_anim.core.library import load_library
 from reactive_anim.core.react import Baked, bake_reactions, character_ragdoll
 from reactive_anim.core.skeleton import Motion
-from tests.support.mocap import REPO, mocap_files
+from tools.devkit.mocap import REPO, mocap_files
 
 from .common import report, skipped
 

@@ -10,7 +10,7 @@ import numpy as np
 from reactive_anim.core import bvh, quat
 from reactive_anim.core.skeleton import Motion
 from reactive_anim.core.window import FrameFeatures, Query
-from tests.support.mocap import REPO
+from tools.devkit.mocap import REPO
 
 WALK = REPO / "sample_clips" / "walk.bvh"
 

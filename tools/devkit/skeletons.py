@@ -9,7 +9,7 @@ import numpy as np
 
 from reactive_anim.core import bvh, quat
 from reactive_anim.core.skeleton import Skeleton
-from tests.support.mocap import REPO
+from tools.devkit.mocap import REPO
 
 WALK = bvh.read_bvh(REPO / "sample_clips" / "walk.bvh")
 
