@@ -66,11 +66,10 @@ from .skeleton import Motion, hold_root, static_root
 from .window import (
     TABLE2_POSITION_WEIGHTS,
     TABLE2_ROTATION_WEIGHTS,
-    FrameFeatures,
     Query,
+    Windows,
     frame_features,
     joint_weights,
-    window_costs,
     yaw_rotate,
 )
 
@@ -609,21 +608,25 @@ def _resume(
     stride = max(1, round(out.fps / RESUME_RATE))
     latest = min(out.num_frames - window, earliest + round(RESUME_SEARCH * out.fps))
     stop = min(source.num_frames, latest + round(source.fps))  # re-entries a second past the latest start
-    tails = _rows(frame_features(out.slice(earliest, latest + window), roles), slice(None, None, stride))
-    candidates = _rows(frame_features(source.slice(first, stop), roles), slice(None, None, stride))
+    tails = frame_features(out.slice(earliest, latest + window), roles).rows(slice(None, None, stride))
+    candidates = frame_features(source.slice(first, stop), roles).rows(slice(None, None, stride))
     span = max(2, round(window / stride))
     wp, wq = joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS)
+    windows = Windows.of(candidates, np.arange(max(0, candidates.num_frames - span + 1)), span)
     tried: list[tuple[float, int, int]] = [(np.inf, out.num_frames - window, first)]
     for k in range((latest - earliest) // stride + 1):
         start = earliest + k * stride
-        query = Query(_rows(tails, slice(k, k + span)))
+        wait = RESUME_WAIT * (start - earliest) / out.fps
+        if wait > min(total for total, _, _ in tried) + RESUME_TIE:
+            break  # Eq. 1 costs are never negative: no later start can win or tie
+        query = Query(tails.rows(slice(k, k + span)))
         last = min(stop, start + round(source.fps)) - window  # re-entries up to a second past the start
         entries = min((last - first) // stride + 1, candidates.num_frames - span + 1)
         if entries <= 0 or query.window < span:
             continue
-        costs = window_costs(candidates, np.arange(entries), query, wp, wq)
+        costs = windows.costs(query, wp, wq, entries)
         j = int(np.argmax(costs <= costs.min() + RESUME_TIE))  # near ties: see below
-        tried.append((float(costs[j]) + RESUME_WAIT * (start - earliest) / out.fps, start, first + j * stride))
+        tried.append((float(costs[j]) + wait, start, first + j * stride))
     # the earliest start within RESUME_TIE of the least cost: a near tie goes the same way when the
     # motion differs by round-off (the character turned on the set), where the least alone may not
     least = min(total for total, _, _ in tried)
@@ -635,11 +638,6 @@ def _resume(
     faded, carried = blend_travel(tail, resumed.slice(0, window), fade_weights(window), pelvis)
     rest = place(resumed.slice(window, resumed.num_frames), 0.0, carried)
     return _join(out.slice(0, begin), faded, rest), entry, begin
-
-
-def _rows(features: FrameFeatures, rows: slice) -> FrameFeatures:
-    f = features
-    return FrameFeatures(f.pos_local[rows], f.heading[rows], f.ground[rows], f.rot[rows])
 
 
 # ---------------------------------------------------------------------------------------------

@@ -78,6 +78,10 @@ class FrameFeatures:
     def num_frames(self) -> int:
         return self.heading.shape[0]
 
+    def rows(self, frames: slice) -> FrameFeatures:
+        """The features of some of the frames (a stride, a window)."""
+        return FrameFeatures(self.pos_local[frames], self.heading[frames], self.ground[frames], self.rot[frames])
+
     def world_positions(self) -> np.ndarray:
         """Joint positions in world space (T, 15, 3), rebuilt from the heading frames."""
         return yaw_rotate(self.heading[:, None], self.pos_local) + _ground3(self.ground)[:, None]
@@ -179,13 +183,31 @@ def window_costs(frames: FrameFeatures, starts: np.ndarray, query: Query, wp: np
     """Eq. 1 (float64, (n,)) between the query and the windows of `frames` starting at `starts` (n,).
 
     wp, wq: per-joint weights (15,) from joint_weights."""
-    index = np.asarray(starts)[:, None] + np.arange(query.window)
-    cand = aligned_window(*(a[index].astype(float) for a in (frames.pos_local, frames.heading, frames.ground)))
-    dist = np.sqrt(np.sum((cand - query.aligned) ** 2, axis=-1))  # (n, W, 15)
-    rot = frames.rot[index].astype(float)
-    angle = rotation_angles(query.features.rot.astype(float).transpose(2, 0, 1), rot.transpose(3, 0, 1, 2))
-    # Row-wise sums (not BLAS), so identical windows get bit-identical costs and ties stay ties.
-    return ((dist * wp).sum(axis=-1) + (angle * wq).sum(axis=-1)).sum(axis=1)
+    return Windows.of(frames, starts, query.window).costs(query, wp, wq)
+
+
+@dataclass(frozen=True)
+class Windows:
+    """Eq. 1's candidate side, aligned once: several queries (the resume's fade starts) compare
+    against the same windows without aligning them again. aligned (n, W, 15, 3); rot (4, n, W, 15),
+    the local rotations as component planes."""
+
+    aligned: np.ndarray
+    rot: np.ndarray
+
+    @classmethod
+    def of(cls, frames: FrameFeatures, starts: np.ndarray, window: int) -> Windows:
+        """The `window`-frame windows of `frames` starting at `starts` (n,)."""
+        index = np.asarray(starts)[:, None] + np.arange(window)
+        aligned = aligned_window(*(a[index].astype(float) for a in (frames.pos_local, frames.heading, frames.ground)))
+        return cls(aligned, frames.rot[index].astype(float).transpose(3, 0, 1, 2))
+
+    def costs(self, query: Query, wp: np.ndarray, wq: np.ndarray, count: int | None = None) -> np.ndarray:
+        """Eq. 1 of the first `count` windows (default all) against `query`."""
+        dist = np.sqrt(np.sum((self.aligned[:count] - query.aligned) ** 2, axis=-1))  # (n, W, 15)
+        angle = rotation_angles(query.features.rot.astype(float).transpose(2, 0, 1), self.rot[:, :count])
+        # Row-wise sums (not BLAS), so identical windows get bit-identical costs and ties stay ties.
+        return ((dist * wp).sum(axis=-1) + (angle * wq).sum(axis=-1)).sum(axis=1)
 
 
 def rotation_angles(a: np.ndarray, b: np.ndarray) -> np.ndarray:
