@@ -58,6 +58,7 @@ from . import capture
 from .capture import SoleGeometry, Support
 from .errors import SkeletonError
 from .ragdoll import Ragdoll
+from .retarget import leg_length
 from .simulate import SimResult, mocap_qpos
 from .skeleton import Motion, Skeleton, forward_kinematics
 
@@ -118,21 +119,7 @@ class Body:
         if missing:
             raise SkeletonError(f"the reaction features need joints for the roles: {', '.join(missing)}")
         joints = {role: skeleton.index(name) for role, name in roles.items()}
-        return cls(joints=joints, leg_length=leg_length(skeleton, joints))
-
-
-def leg_length(skeleton: Skeleton, joints: dict[str, int]) -> float:
-    """Hip to knee plus knee to ankle joint (m), mean of both legs, from the rest offsets."""
-    rest = skeleton.rest_positions()
-    legs = [
-        np.linalg.norm(rest[joints[f"knee_{s}"]] - rest[joints[f"hip_{s}"]])
-        + np.linalg.norm(rest[joints[f"ankle_{s}"]] - rest[joints[f"knee_{s}"]])
-        for s in ("l", "r")
-    ]
-    length = float(np.mean(legs))
-    if not length > 0.05:
-        raise SkeletonError(f"the legs are {length:.3f} m long (hip to ankle); the skeleton cannot stand")
-    return length
+        return cls(joints=joints, leg_length=leg_length(skeleton, roles))
 
 
 def spine_frame(body: Body, positions: np.ndarray) -> np.ndarray:

@@ -174,15 +174,17 @@ def _between(target: Skeleton, joint: int, child: int, role_joints: set[int]) ->
 
 
 def leg_length(skeleton: Skeleton, roles: dict[str, str]) -> float:
-    """Mean of the two legs' thigh + shin rest lengths, metres."""
+    """Mean of the two legs' thigh + shin rest lengths, metres: the one length everything about
+    balance, steps and feet is scaled by (a skeleton whose legs are under 5 cm cannot stand, and
+    would divide by next to nothing)."""
     pos = skeleton.rest_positions()
     lengths = []
     for s in SIDES:
         hip, knee, ankle = (pos[skeleton.index(roles[f"{p}_{s}"])] for p in ("hip", "knee", "ankle"))
         lengths.append(np.linalg.norm(knee - hip) + np.linalg.norm(ankle - knee))
     length = float(np.mean(lengths))
-    if not length > 1e-6:
-        raise SkeletonError("the legs have no length in the rest pose (hip, knee and ankle coincide)")
+    if not length > 0.05:
+        raise SkeletonError(f"the legs are {length:.3f} m long (hip to ankle); the skeleton cannot stand")
     return length
 
 
