@@ -24,13 +24,9 @@ Writing a bake's result carries the source action along: every channel the motio
 action with its keys and settings, so the new action plays exactly like the source wherever the
 motion agrees with it (`write_motion`'s carry_from).
 
-Blender has three live action APIs; they differ in where F-curves live, which `_fcurve_factory`
-(writing) and `_slot_fcurves` (reading, for `_playing_fcurves` and the channels a write carries)
-hide, chosen by feature detection:
-- 4.2: `action.fcurves`, `fcurves.new(data_path, index, action_group=...)`;
-- 4.4/4.5: layered actions (slot, layer, keyframe strip, channelbag); `fcurves.new` takes no group
-  name, so groups are made with `channelbag.groups.new` and assigned;
-- 5.0: layered only (`action.fcurves` is gone); `fcurves.new(..., group_name=...)`.
+Blender's action APIs (4.2 legacy, 4.4+ layered, 5.0 layered only: compat.py) differ in where
+F-curves live, which `_fcurve_factory` (writing) and `_slot_fcurves` (reading, for
+`_playing_fcurves` and the channels a write carries) hide.
 """
 
 from __future__ import annotations
@@ -46,17 +42,12 @@ import numpy as np
 from ..core import quat
 from ..core.errors import SkeletonError
 from ..core.skeleton import Motion, Skeleton
+from . import compat
 
 LOCAL_POS_TOLERANCE = 1e-5  # metres (float32 pose matrices); below this, joint translations equal the rest offsets
 # Keyframe interpolation as foreach_get/foreach_set see it: the enum's stored byte (a uint8 buffer
 # is copied as is; any other type is converted value by value, several times slower).
 _CONSTANT, _LINEAR = 0, 1
-
-
-def _since_4_4(blender_object: object) -> Any:
-    """The object untyped, to reach the layered-action API of Blender 4.4+ (slots, layers,
-    action_slot): callers detect the feature at run time, and the type stubs describe 4.2."""
-    return blender_object
 
 
 def _armature_data(armature: bpy.types.Object) -> bpy.types.Armature:
@@ -147,7 +138,7 @@ def _action_assigned(armature: bpy.types.Object, action: bpy.types.Action | None
             scene.frame_set(frame[0], subframe=frame[1])
         return
     adt = armature.animation_data or armature.animation_data_create()
-    saved = (adt.action, getattr(adt, "action_slot", None), adt.use_nla)
+    saved = (adt.action, compat.assigned_slot(adt), adt.use_nla)
     try:
         if action is not None:
             adt.action = action
@@ -159,20 +150,16 @@ def _action_assigned(armature: bpy.types.Object, action: bpy.types.Action | None
             armature.animation_data_clear()
         else:
             adt.action = saved[0]
-            if saved[0] is not None and hasattr(adt, "action_slot") and saved[1] is not None:
-                _since_4_4(adt).action_slot = saved[1]
+            if saved[0] is not None:
+                compat.assign_slot(adt, saved[1])
             adt.use_nla = saved[2]
         scene.frame_set(frame[0], subframe=frame[1])
 
 
 def _ensure_slot(adt: bpy.types.AnimData, action: bpy.types.Action) -> None:
     """Layered actions animate nothing until a slot is assigned; pick the first object slot."""
-    if not hasattr(adt, "action_slot") or _since_4_4(adt).action_slot is not None:
-        return
-    for slot in _since_4_4(action).slots:
-        if slot.target_id_type in {"OBJECT", "UNSPECIFIED"}:
-            _since_4_4(adt).action_slot = slot
-            return
+    if compat.has_slots(adt) and compat.assigned_slot(adt) is None:
+        compat.assign_slot(adt, compat.object_slot(action))
 
 
 def read_motion(
@@ -389,8 +376,8 @@ def _motion_from_fcurves(
 
 def has_keyframes(action: bpy.types.Action) -> bool:
     """Whether any F-curve of the action (of any slot, in Blender 4.4+) has a key."""
-    if hasattr(action, "layers") and (_since_4_4(action).layers or not hasattr(action, "fcurves")):
-        bags = [bag for layer in _since_4_4(action).layers for strip in layer.strips for bag in strip.channelbags]
+    if compat.has_layers(action) and (compat.layered(action).layers or not hasattr(action, "fcurves")):
+        bags = [bag for layer in compat.layered(action).layers for strip in layer.strips for bag in strip.channelbags]
         curves = [fcurve for bag in bags for fcurve in bag.fcurves]
     else:  # 4.2, or a legacy action in 4.4/4.5
         curves = list(action.fcurves)
@@ -404,19 +391,19 @@ def _playing_fcurves(armature: bpy.types.Object) -> list[bpy.types.FCurve] | Non
     action = adt.action if adt is not None else None
     if adt is None or action is None:
         return []
-    if not hasattr(action, "layers"):  # 4.2: legacy actions
+    if not compat.has_layers(action):  # 4.2: legacy actions
         return list(action.fcurves)
-    layers = _since_4_4(action).layers
+    layers = compat.layered(action).layers
     if len(layers) > 1 or any(len(layer.strips) > 1 for layer in layers):
         return None
-    return _slot_fcurves(action, _since_4_4(adt).action_slot)
+    return _slot_fcurves(action, compat.assigned_slot(adt))
 
 
 def _slot_fcurves(action: bpy.types.Action, slot: Any) -> list[bpy.types.FCurve]:
     """The F-curves of `action` for `slot` (Blender 4.4+; None: none), or all of a 4.2 action."""
-    if not hasattr(action, "layers"):  # 4.2: legacy actions
+    if not compat.has_layers(action):  # 4.2: legacy actions
         return list(action.fcurves)
-    layers = _since_4_4(action).layers
+    layers = compat.layered(action).layers
     bags = [strip.channelbag(slot) for layer in layers for strip in layer.strips] if slot is not None else []
     return [fcurve for bag in bags if bag is not None for fcurve in bag.fcurves]
 
@@ -601,13 +588,13 @@ def _fcurve_factory(
     action: bpy.types.Action, armature: bpy.types.Object
 ) -> Callable[[str, int, str], bpy.types.FCurve]:
     """new_fcurve(data_path, index, group) for whichever action API this Blender has."""
-    if not hasattr(action, "layers"):  # 4.2: legacy actions
+    if not compat.has_layers(action):  # 4.2: legacy actions
         return lambda path, index, group: action.fcurves.new(path, index=index, action_group=group)
-    layered = _since_4_4(action)
+    layered = compat.layered(action)
     slot = layered.slots.new(id_type="OBJECT", name=armature.name)
     strip = layered.layers.new("Layer").strips.new(type="KEYFRAME")
     channelbag = strip.channelbag(slot, ensure=True)
-    if "group_name" in channelbag.fcurves.bl_rna.functions["new"].parameters:  # 5.0 and newer
+    if compat.fcurves_new_takes_group(channelbag):  # 5.0 and newer
         return lambda path, index, group: channelbag.fcurves.new(path, index=index, group_name=group)
 
     def new_fcurve(path: str, index: int, group: str) -> bpy.types.FCurve:  # 4.4 / 4.5
@@ -658,7 +645,7 @@ def _carry_fcurves(
     their types, interpolation, easing and its parameters, key type), extrapolation, mute and
     display settings, modifiers; its integer or on/off evaluation is set as Blender sets it for
     the property the path names on the armature."""
-    for fcurve in _slot_fcurves(source, _slot_named(source, slot_identifier)):
+    for fcurve in _slot_fcurves(source, compat.object_slot(source, slot_identifier)):
         match = _BONE_CHANNEL.match(fcurve.data_path)
         if match and match[3] in _DECIDED and re.sub(r"\\(.)", r"\1", match[2]) in joints:
             continue
@@ -666,14 +653,6 @@ def _carry_fcurves(
         _copy_fcurve(fcurve, copy)
         with suppress(RuntimeError):  # a path the armature lacks (a property removed since): flags as made
             copy.update_autoflags(armature)
-
-
-def _slot_named(action: bpy.types.Action, identifier: str) -> Any:
-    """The action's slot `identifier` (Blender 4.4+; "" or not found: its first object slot, the
-    one a bake plays it through when none is assigned), None without slots."""
-    slots = list(getattr(action, "slots", ()))
-    named = [s for s in slots if s.identifier == identifier]
-    return next(iter(named or [s for s in slots if s.target_id_type in {"OBJECT", "UNSPECIFIED"}]), None)
 
 
 def _copy_fcurve(source: bpy.types.FCurve, target: bpy.types.FCurve) -> None:

@@ -52,7 +52,7 @@ from ..core.impact import Impact
 from ..core.library import Library
 from ..core.react import Baked, Reaction, ReactionClassifier, ReactionSettings, bake_reactions
 from ..core.skeleton import Motion
-from . import action_io, consumed, impacts, resources, role_map, settings
+from . import action_io, compat, consumed, impacts, resources, role_map, settings
 
 REACTED_SUFFIX = ".reacted"
 # The bake state a failed write puts back (the summary is only written after a bake succeeds).
@@ -125,7 +125,7 @@ def source_slot(armature: bpy.types.Object) -> str:
     channels a bake carries; "" in 4.2 or with none assigned."""
     if is_baked(armature):
         return bake_state(armature).original_slot
-    slot = _slot(armature.animation_data) if armature.animation_data is not None else None
+    slot = compat.assigned_slot(armature.animation_data) if armature.animation_data is not None else None
     return slot.identifier if slot is not None else ""
 
 
@@ -505,7 +505,7 @@ def assign_reacted(
     state = bake_state(armature)
     rebake = is_baked(armature)
     modes = {pb.name: pb.rotation_mode for pb in armature.pose.bones}
-    saved_action, saved_slot = adt.action, _slot(adt)
+    saved_action, saved_slot = adt.action, compat.assigned_slot(adt)
     saved_state = {key: getattr(state, key) for key in _RESTORED_STATE}
     previous = state.reacted_action if rebake else None
     name = source.name + REACTED_SUFFIX
@@ -540,23 +540,14 @@ def assign_action(ob: bpy.types.Object, action: bpy.types.Action) -> None:
     _assign(ob.animation_data or ob.animation_data_create(), action, None)
 
 
-def _slot(adt: bpy.types.AnimData) -> Any:
-    """The assigned action slot (Blender 4.4+), or None."""
-    return getattr(adt, "action_slot", None)
-
-
 def _assign(adt: bpy.types.AnimData, action: bpy.types.Action | None, slot: Any) -> None:
     """Play `action` through `slot` (4.4+; a slot identifier or a slot; default its first object slot)."""
     adt.action = action
-    if action is None or not hasattr(adt, "action_slot"):
+    if action is None or not compat.has_slots(adt):
         return
-    slots = list(cast(Any, action).slots)
-    if isinstance(slot, str):
-        slot = next((s for s in slots if s.identifier == slot), None)
-    if slot is None:
-        slot = next((s for s in slots if s.target_id_type in {"OBJECT", "UNSPECIFIED"}), None)
-    if slot is not None and cast(Any, adt).action_slot != slot:
-        cast(Any, adt).action_slot = slot
+    if slot is None or isinstance(slot, str):
+        slot = compat.object_slot(action, slot or "")
+    compat.assign_slot(adt, slot)
 
 
 def restore_rotation_modes(armature: bpy.types.Object, modes: dict[str, str]) -> None:

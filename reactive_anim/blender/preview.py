@@ -22,7 +22,7 @@ import bpy
 
 from ..core.errors import ReactiveAnimError, SkeletonError
 from ..core.react import Baked
-from . import action_io, bake, settings
+from . import action_io, bake, compat, settings
 
 PREVIEW_SUFFIX = ".preview"
 GHOST_BONE_COLOUR = "THEME09"  # a light tint in every default theme, unlike the character's own bones
@@ -118,7 +118,7 @@ def accept_preview(armature: bpy.types.Object, scene: bpy.types.Scene) -> str:
     def take_preview() -> bpy.types.Action:
         for bone_name in record["bones"]:
             armature.pose.bones[bone_name].rotation_mode = "QUATERNION"  # as write_motion leaves a bake
-        for slot in getattr(action, "slots", ()):  # 4.4+: the slot is named after the ghost
+        for slot in compat.slots(action):  # 4.4+: the slot is named after the ghost
             slot.name_display = armature.name
         return action
 
