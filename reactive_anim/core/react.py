@@ -76,7 +76,6 @@ from .window import (
 RESUME_WAIT = 60.0  # Eq. 1 cost per second a reaction goes on before the motion resumes (_resume)
 RESUME_RATE = 30.0  # fade starts and re-entries tried per second (_resume)
 RESUME_SEARCH = 1.0  # s after the earliest fade start within which the fade may start (_resume)
-RESUME_TIE = 0.05  # Eq. 1 costs this close count as equal (_resume)
 DOWN_AHEAD = 0.5  # s after C within which the motion being played reaching the floor counts (_going_down)
 DOWN_HEIGHT = 0.5  # leg lengths: a pelvis this low over the floor sits, kneels or lies (_going_down)
 STILL_KEPT = 0.5  # s of a clip's still tail played before the motion resumes or a get-up begins
@@ -617,20 +616,17 @@ def _resume(
     for k in range((latest - earliest) // stride + 1):
         start = earliest + k * stride
         wait = RESUME_WAIT * (start - earliest) / out.fps
-        if wait > min(total for total, _, _ in tried) + RESUME_TIE:
-            break  # Eq. 1 costs are never negative: no later start can win or tie
+        if wait >= min(tried)[0]:
+            break  # Eq. 1 costs are never negative: no later start can win
         query = Query(tails.rows(slice(k, k + span)))
         last = min(stop, start + round(source.fps)) - window  # re-entries up to a second past the start
         entries = min((last - first) // stride + 1, candidates.num_frames - span + 1)
         if entries <= 0 or query.window < span:
             continue
         costs = windows.costs(query, wp, wq, entries)
-        j = int(np.argmax(costs <= costs.min() + RESUME_TIE))  # near ties: see below
+        j = int(np.argmin(costs))
         tried.append((float(costs[j]) + wait, start, first + j * stride))
-    # the earliest start within RESUME_TIE of the least cost: a near tie goes the same way when the
-    # motion differs by round-off (the character turned on the set), where the least alone may not
-    least = min(total for total, _, _ in tried)
-    _, begin, entry = next(t for t in tried[1:] + tried[:1] if t[0] <= least + RESUME_TIE)
+    _, begin, entry = min(tried)  # on an exact tie, the earliest start and re-entry
     tail = out.slice(begin, begin + window)
     yaw, offset = _alignment(tail.slice(0, 1), source.slice(entry, entry + 1), roles)
     resumed = place(source.slice(entry, source.num_frames), yaw, offset)
