@@ -92,7 +92,7 @@ class Classifier:
         return out[0] if x.ndim == 1 else out
 
     def class_probabilities(self, features: np.ndarray) -> np.ndarray:
-        """Probabilities in CLASS_SLUGS order, (10,) or (N, 10), of EXTENDED_FEATURES rows; a class
+        """Probabilities in CLASS_SLUGS order, (K,) or (N, K) for K classes, of EXTENDED_FEATURES rows; a class
         the model does not know gets 0."""
         features = np.asarray(features, dtype=np.float64)
         if features.shape[-1:] != (len(EXTENDED_FEATURES),):

@@ -219,8 +219,9 @@ def mirrored(features: np.ndarray) -> np.ndarray:
 
     Mirrored, the hips and shoulders swap sides, so the spine frame keeps its axes and every
     value along its Y (left) changes sign; the rest stay, xcom_sin being a |sine|. The outcome rule
-    is symmetric too (its sectors and steps never ask left or right), so a mirrored row keeps its
-    label: training on both sides doubles the data for free.
+    is symmetric too: a mirrored row's label is its class's mirror image (a side step's other side,
+    classes.mirror_image; every other class its own), so training on both sides doubles the data
+    for free.
     """
     out = np.array(features, dtype=float)
     out[..., _LATERAL] *= -1.0

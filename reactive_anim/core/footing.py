@@ -205,9 +205,9 @@ def _sliding(points: np.ndarray, floor: float, fps: float) -> tuple[np.ndarray, 
 
 def _offsets(down: np.ndarray, slide: np.ndarray, fps: float, most: float) -> np.ndarray:
     """(T, 2) the ankle's ground offset per frame (row 0, the frame before the range, is zero): the
-    slide taken back, at most `most` (m; a foot held further would leave its leg stretched out
-    straight); let go in the air (1 - down) at CATCH_UP_RATE, fast while it is large and slowing as
-    it shrinks, so the foot eases onto the motion's path instead of stopping short on it."""
+    slide taken back, at most `most` (m; beyond, the foot slides: MAX_OFFSET); let go in the air
+    (1 - down) at CATCH_UP_RATE, fast while it is large and slowing as it shrinks, so the foot
+    eases onto the motion's path instead of stopping short on it."""
     offset = np.zeros((len(slide) + 1, 2))
     for t in range(1, len(offset)):
         held = offset[t - 1] - slide[t - 1]

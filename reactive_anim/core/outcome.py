@@ -131,7 +131,7 @@ def collapsing(body: Body, com: np.ndarray, com_velocity: np.ndarray, floor: flo
 def judge(body: Body, state: ReactionState, window: float = REACTION_WINDOW, *, going_down: bool = False) -> Outcome:
     """The reaction class of a reaction state (see the module docstring); window: C - B in seconds.
     going_down: the caller knows the body is on its way to the floor whatever the state at C says
-    (react._going_down: an earlier fall still playing), so the verdict is a fall."""
+    (react._played_down: an earlier fall still playing), so the verdict is a fall."""
     shift = state.xcom_departure()
     norm = float(np.linalg.norm(shift))
     excess = norm - state.reach()

@@ -506,12 +506,13 @@ def _missing_class(
 
 def _going_down(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact, library: Library) -> str | None:
     """The outcome rule's fall when the body is already down at C (a body other than the feet on the
-    floor) or going down (low and sinking, outcome.collapsing), else None (also when the library has
-    no falls). The classifier learnt from pushes on walks, runs and stands and has not seen such
-    states: a push during an earlier reaction's deep crouch, the hips at 0.28 m and sinking at 2 m/s,
-    came out a sway at p = 1.00 and the character stood up out of the collapse (23 of 332 random
-    pushes on the shared mocap went down at C and were given a step or a sway); a body lying on the
-    floor was given a sway and stood up."""
+    floor) or going down (low and sinking, outcome.collapsing; or low while the motion it plays goes
+    to the floor, _played_down), else None (also when the library has no falls). The classifier
+    learnt from pushes on walks, runs and stands and has not seen such states: a push during an
+    earlier reaction's deep crouch, the hips at 0.28 m and sinking at 2 m/s, came out a sway at
+    p = 1.00 and the character stood up out of the collapse (23 of 332 random pushes on the shared mocap
+    went down at C and were given a step or a sway); a body lying on the floor was given a sway and
+    stood up."""
     if not any(is_fall(slug) for slug in library.class_ranges):
         return None
     body = Body.of(ragdoll.skeleton, ragdoll.roles)
@@ -528,7 +529,8 @@ def _played_down(motion: Motion, frame_c: int, body: Body, floor: float) -> bool
     fall still playing. A push during it lands on a body already low; the ragdoll bouncing off the
     floor in BC can be rising at C (a walk pushed into a backward sit, pushed again as it went
     down: 0.49 m at +0.7 m/s) and was judged a step that stood the falling body up."""
-    ahead = motion.slice(frame_c, min(frame_c + round(DOWN_AHEAD * motion.fps) + 1, motion.num_frames))
+    first = min(frame_c, motion.num_frames - 1)  # C past the motion's end: its last pose holds
+    ahead = motion.slice(first, min(first + round(DOWN_AHEAD * motion.fps) + 1, motion.num_frames))
     pelvis = ahead.global_positions()[:, body.joints["pelvis"], 2]
     return bool(pelvis.min() - floor < DOWN_HEIGHT * body.leg_length)
 

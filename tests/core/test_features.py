@@ -170,7 +170,7 @@ def mirror_of(state: ReactionState, body: Body) -> ReactionState:
 
 @pytest.mark.parametrize(("clip", "role", "towards"), [("walk", "pelvis", "left"), ("idle", "chest", "forward")])
 def test_a_mirrored_push_has_the_mirrored_features(clips, clip, role, towards):
-    """What lets training add every push's mirror image with the same label: the mirrored state's
+    """What lets training add every push's mirror image (labelled with its class's mirror image): the mirrored state's
     features are exactly `mirrored` of the original's (and they differ: the push has a side)."""
     motion, reader = clips[clip]
     state = pushed(motion, reader, role, towards)

@@ -114,7 +114,7 @@ def test_a_walkers_hold_is_let_go_in_the_air_and_the_walk_after_is_untouched():
 
 def test_a_drag_beyond_the_hold_slides_the_feet_by_the_rest():
     """Dragged 15 cm further than the hold, the feet are held back by at most MAX_OFFSET leg lengths
-    (a leg held further would be stretched straight) and slide the rest."""
+    and slide the rest."""
     most = MAX_OFFSET * leg_length(IDLE.skeleton, ROLES)
     moved = dragged(most + 0.15)
     held = hold_feet(moved, ROLES, (START, START + FRAMES), [(START, START + FRAMES)], sole(moved))

@@ -292,7 +292,7 @@ def test_next_may_name_a_chained_clip_that_is_not_searched(tmp_path: Path) -> No
 
 
 def test_the_sample_library_loads(tmp_path: Path) -> None:
-    """The project's own clips (sample_clips/) form a library: all 10 classes, 3+ clips each."""
+    """The project's own clips (sample_clips/) form a library: every class, 3+ clips each."""
     folder = REPO / "sample_clips"
     lib = load_library(folder, cache_dir=tmp_path / "cache")
     chains = read_chains(folder)

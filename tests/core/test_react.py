@@ -323,6 +323,11 @@ def test_a_push_on_a_character_sitting_on_the_floor_starts_from_its_pose(library
                    source=motion)  # fmt: skip
     rise = pushed.motion.global_positions()[123:134, hips, 2] - sitting.global_positions()[123, hips, 2]
     assert rise.max() < 0.15, rise.max()
+    # pushed in the last frames of a take that ends sitting: C lies past its end, where the last
+    # pose holds (looking ahead there raised a bare ValueError)
+    late = react(sitting.slice(0, 126), Impact(124.0, "Chest", (-0.712, 0.596, -0.371), 39.1), library,
+                 load_classifier(), source=motion)  # fmt: skip
+    assert late.frame_c >= 126 and late.going_down and late.reaction_class.startswith("fall_")
 
 
 class Sure:

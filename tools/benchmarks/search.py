@@ -3,8 +3,8 @@
 Libraries: the sample library (sample_clips/library.toml, the bake's default) and a scaled library
 of at least 100,000 frames made from every clip in ../shared/mocap (test and benchmark data only;
 classes by file name, tools/devkit/library_clips.py's mocap_class): copies of the clips, each
-turned by a random yaw and moved on the ground, dealt round-robin over the 10 classes so that one
-class is a tenth of it. Without ../shared the scaled library and the shared walks are skipped, with
+turned by a random yaw and moved on the ground, dealt round-robin over the classes so that each
+has an equal share. Without ../shared the scaled library and the shared walks are skipped, with
 the reason printed.
 
 Real queries, made by the pipeline's own code (core.react.impact_query: the push simulated over BC,

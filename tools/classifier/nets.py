@@ -1,6 +1,6 @@
 """The two networks, trained with numpy: ours (an MLP with a softmax over the classes, sized by
 validation) and the paper's (section 2.3: 9 inputs scaled to [0, 1], 9 sigmoid hidden units, 4
-sigmoid outputs that binary-code the class, 0000 .. 1001).
+sigmoid outputs that binary-code the class, 0000 .. 1011 for our 12).
 
 numpy is enough: ten thousand samples, nets of a few thousand weights, and full control of the
 seed; a deep-learning library would add hundreds of megabytes for nothing. Training is Adam
@@ -242,18 +242,24 @@ def class_bits(labels: np.ndarray) -> np.ndarray:
     return ((labels[:, None] >> np.arange(PAPER_BITS - 1, -1, -1)) & 1).astype(float)
 
 
-def predict_paper(net: Net, x: np.ndarray) -> np.ndarray:
-    """Decoded class indices; a code past the last class (1010 .. 1111) decodes to -1 (wrong)."""
+def predict_paper(net: Net, x: np.ndarray, count: int) -> np.ndarray:
+    """Decoded class indices of `count` classes; a code past the last class decodes to -1 (wrong)."""
     bits = (net.outputs(x) > 0.5).astype(int)
     index = bits @ (1 << np.arange(PAPER_BITS - 1, -1, -1))
-    return np.where(index < 10, index, -1)
+    return np.where(index < count, index, -1)
 
 
 def fit_paper(
-    train_x: np.ndarray, train_y: np.ndarray, val_x: np.ndarray, val_y: np.ndarray, seed: int, epochs: int = EPOCHS
+    training: tuple[np.ndarray, np.ndarray],
+    validation: tuple[np.ndarray, np.ndarray],
+    count: int,
+    seed: int,
+    epochs: int = EPOCHS,
 ) -> Net:
-    """The paper's net: inputs scaled to [0, 1] by the training set's range, 9 sigmoid hidden units,
-    4 sigmoid outputs; twice the epochs of ours (it is 130 weights: cheap, and slow to learn)."""
+    """The paper's net on (x, y) splits of `count` classes: inputs scaled to [0, 1] by the training
+    set's range, 9 sigmoid hidden units, 4 sigmoid outputs; twice the epochs of ours (it is 130
+    weights: cheap, and slow to learn)."""
+    (train_x, train_y), (val_x, val_y) = training, validation
     low, high = train_x.min(axis=0), train_x.max(axis=0)
     scale = np.where(high - low > 1e-9, high - low, 1.0)
     weights, biases = _init([train_x.shape[1], PAPER_HIDDEN, PAPER_BITS], np.random.default_rng(seed))
@@ -262,7 +268,7 @@ def fit_paper(
         net,
         Split(train_x, class_bits(train_y), train_y),
         Split(val_x, class_bits(val_y), val_y),
-        predict_paper,
+        lambda n, x: predict_paper(n, x, count),
         seed,
         2 * epochs,
         PAPER_LEARNING_RATE,

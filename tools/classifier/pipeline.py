@@ -269,12 +269,12 @@ def train_paper_net(
     x = select(features, FEATURE_SETS["paper"])
     va, te = splits["val"], splits["test"]
     train_rows, train_labels = with_mirrors(features[splits["train"]], labels[splits["train"]], classes)
-    net = nets.fit_paper(
-        select(train_rows, FEATURE_SETS["paper"]), train_labels, x[va], labels[va], config.seed, config.epochs
-    )
-    val = float(np.mean(nets.predict_paper(net, x[va]) == labels[va]))
+    count = len(classes)
+    training = (select(train_rows, FEATURE_SETS["paper"]), train_labels)
+    net = nets.fit_paper(training, (x[va], labels[va]), count, config.seed, config.epochs)
+    val = float(np.mean(nets.predict_paper(net, x[va], count) == labels[va]))
     log(f"  the paper's 9-9-4 sigmoid net: validation {val:.4f}")
-    test = evaluate(nets.predict_paper(net, x[te]), labels[te], classes)
+    test = evaluate(nets.predict_paper(net, x[te], count), labels[te], classes)
     return Trained(
         "paper's 9-9-4 sigmoid net (paper features)", FEATURE_SETS["paper"], (nets.PAPER_HIDDEN,), val, test, net=net
     )

@@ -10,7 +10,6 @@ beside what the outcome rule says of the same state. Both are skipped where ../s
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -22,10 +21,10 @@ from reactive_anim.core.outcome import judge
 from reactive_anim.core.ragdoll import build_ragdoll
 from reactive_anim.core.simulate import REACTION_WINDOW
 from reactive_anim.core.skeleton import Motion
+from tools.devkit.mocap import MOCAP
 
 from .pushes import plan_pushes, simulate_pushes
 
-MOCAP = Path(__file__).resolve().parents[3] / "shared" / "mocap"
 WALKS = (
     "bandai_namco/dataset-1/dataset-1_walk_normal_001.bvh",
     "bandai_namco/dataset-2/dataset-2_walk_elderly_001.bvh",

@@ -216,7 +216,7 @@ def _models(result: Result) -> str:
             "Same samples, same splits. Ours: tanh hidden layers, softmax over the classes, sized by validation "
             "accuracy (on the direction groups first, then the classes, then the smaller net). The paper's: "
             "9 inputs scaled to [0, 1], 9 sigmoid hidden units, 4 sigmoid outputs binary-coding "
-            "the class (a code past 1001 counts as wrong).",
+            "the class (a code past the last class counts as wrong).",
             "",
             _table(["model", "inputs", "hidden", "parameters", "validation", "test", "test, direction group"], rows),
             "",
