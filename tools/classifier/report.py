@@ -312,7 +312,7 @@ def _timing(result: Result) -> str:
             f"- Inference, one call on one feature row (onnxruntime, CPU, one thread; median of 2,000): "
             f"{result.inference_us.get('probabilities', 0):.0f} µs for the model's own inputs, "
             f"{result.inference_us.get('class_probabilities', 0):.0f} µs from the full feature row "
-            "to the 10 class probabilities.",
+            "to the class probabilities.",
             f"- Features of a simulated push (`Classifier.classify` from a SimResult, reading the state at C): "
             f"{result.inference_us.get('classify', 0):.0f} µs.",
             f"- ONNX IR version {result.ir_version}, opset {OPSET} (`helper.make_model_gen_version`); against numpy "
