@@ -18,15 +18,15 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .core.errors import ReactiveAnimError
+from .core.model.errors import ReactiveAnimError
 from .farm.report import FileOutcome, report_lines
 from .farm.task import die_with_parent
 
 if TYPE_CHECKING:  # bpy and the Blender layer are imported by the commands that need them
     import bpy
 
-    from .core.library import Library
     from .core.react import ReactionClassifier
+    from .core.search.library import Library
 
     Opened = tuple[Library, tuple[ReactionClassifier | None, str], str]  # library, classifier, settings digest
 
@@ -35,7 +35,7 @@ def _import_command(args: argparse.Namespace) -> int:
     """A new empty scene, the BVH imported as a character, saved as a .blend."""
     import bpy
 
-    from .blender import bvh_import
+    from .blender.character import bvh_import
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     armature = bvh_import.import_bvh(bpy.context, args.bvh, unit=args.unit, up=args.up)
@@ -164,7 +164,7 @@ def _one_file_arguments(out: Path, args: argparse.Namespace) -> list[str]:
 def _open_library_and_model(args: argparse.Namespace) -> Opened:
     """Opened once, only when some input is left to bake: every file bakes with the same ones, and
     their digest goes into the hash each output records (farm/outputs.py)."""
-    from .blender import resources
+    from .blender.bake import resources
     from .farm import outputs
 
     library_path = args.library.resolve() if args.library else None
@@ -263,7 +263,7 @@ def _bake_armature(
 ) -> None:
     """Bake one armature with its scene active: the bake reads the context scene's frame rate and
     evaluates its view layer, as when the animator bakes in that scene."""
-    from .blender import bake
+    from .blender.bake import bake
 
     print(f"  scene '{scene.name}', armature '{armature.name}'", file=sys.stderr)
     with _scene_active(scene):
@@ -330,7 +330,7 @@ def _bake_targets() -> list[tuple[bpy.types.Scene, bpy.types.Object]]:
 
 def _impact_markers_by_armature(scene: bpy.types.Scene) -> dict[str, list[str]]:
     """The names of the scene's impact markers, by the armature each names, armatures sorted."""
-    from .blender import impacts
+    from .blender.impacts import impacts
 
     found: dict[str, list[str]] = {}
     for marker in scene.timeline_markers:

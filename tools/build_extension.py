@@ -52,7 +52,7 @@ REPO = Path(__file__).resolve().parents[1]
 PACKAGE_DIR = REPO / "reactive_anim"
 MANIFEST = REPO / "blender_manifest.toml"
 # The sample reaction library ships inside the zip as `sample_library/` (the bake's default library;
-# blender/bake.py looks for it there), so an installed extension bakes without a checkout.
+# blender/bake/bake.py looks for it there), so an installed extension bakes without a checkout.
 SAMPLE_LIBRARY = REPO / "sample_clips"
 SAMPLE_FILES = ("*.bvh", "library.toml", "README.md")
 PYPROJECT = REPO / "pyproject.toml"

@@ -5,7 +5,7 @@
     python -m tools.train_classifier --quick --clips my_walk.bvh my_idle.bvh --out my_model.onnx
 
 Simulates pushes on locomotion clips (default: the sample walk, run and idle), labels each by its
-physical outcome (core/outcome.py), trains our MLP on the extended and on the paper's nine features
+physical outcome (core/classify/outcome.py), trains our MLP on the extended and on the paper's nine features
 and the paper's 9-9-4 net, ships the better of ours as ONNX with a Markdown report beside it, and
 (full runs, where ../shared/mocap exists) adds the generalisation and real-capture figures.
 Deterministic: the same seed and clips give the same model. Progress goes to stderr.
@@ -18,9 +18,9 @@ import sys
 import time
 from pathlib import Path
 
-from reactive_anim.core.classes import CLASS_SLUGS
-from reactive_anim.core.classifier import load_classifier
-from reactive_anim.core.errors import ReactiveAnimError
+from reactive_anim.core.classify.classifier import load_classifier
+from reactive_anim.core.model.classes import CLASS_SLUGS
+from reactive_anim.core.model.errors import ReactiveAnimError
 from tools.classifier import real_mocap
 from tools.classifier.pipeline import GROUPS, Config, Result, log_to_stderr, run
 from tools.classifier.pushes import default_workers

@@ -12,8 +12,8 @@ import bpy
 from bpy.props import EnumProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 
-from ..core.errors import ReactiveAnimError
-from . import bvh_import
+from ..core.model.errors import ReactiveAnimError
+from .character import bvh_import
 
 if TYPE_CHECKING:
     from bpy._typing.rna_enums import OperatorReturnItems  # fake-bpy-module's name for the result set

@@ -4,7 +4,11 @@ from __future__ import annotations
 
 import bpy
 
-from . import bake, bake_ops, impact_ops, impacts, marker_sync, operators, overlay, panels, role_map, settings, worker
+from . import operators
+from .bake import bake, bake_ops, worker
+from .character import role_map
+from .impacts import impact_ops, impacts, marker_sync
+from .ui import overlay, panels, settings
 
 CLASSES = (
     impacts.REACTIVE_ANIM_PG_impact,

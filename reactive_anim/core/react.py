@@ -48,22 +48,19 @@ from typing import Protocol
 
 import numpy as np
 
-from .balance import RootAssist
-from .blend import blend, blend_travel, fade_weights, place
-from .capture import foot_bodies
-from .casting import Casting
-from .classes import CLASS_SLUGS, is_fall
-from .errors import Cancelled, ImpactError, LibraryError, SkeletonError
-from .features import Body, FeatureReader
-from .footing import hold_feet, lift_onto_floor
-from .impact import Impact
-from .library import Library
-from .outcome import COLLAPSE_HEIGHT, Outcome, collapsing, judge
-from .ragdoll import Ragdoll, build_ragdoll
-from .search import Match, search, search_with_fallback
-from .simulate import SimResult, Workspace, simulate_impact, track
-from .skeleton import Motion, hold_root, static_root
-from .window import (
+from .classify.capture import foot_bodies
+from .classify.features import Body, FeatureReader
+from .classify.outcome import COLLAPSE_HEIGHT, Outcome, collapsing, judge
+from .model.classes import CLASS_SLUGS, is_fall
+from .model.errors import Cancelled, ImpactError, LibraryError, SkeletonError
+from .model.impact import Impact
+from .model.skeleton import Motion, hold_root, static_root
+from .physics.balance import RootAssist
+from .physics.ragdoll import Ragdoll, build_ragdoll
+from .physics.simulate import SimResult, Workspace, simulate_impact, track
+from .search.library import Library
+from .search.search import Match, search, search_with_fallback
+from .search.window import (
     TABLE2_POSITION_WEIGHTS,
     TABLE2_ROTATION_WEIGHTS,
     Query,
@@ -72,6 +69,9 @@ from .window import (
     joint_weights,
     yaw_rotate,
 )
+from .transition.blend import blend, blend_travel, fade_weights, place
+from .transition.casting import Casting
+from .transition.footing import hold_feet, lift_onto_floor
 
 RESUME_WAIT = 60.0  # Eq. 1 cost per second a reaction goes on before the motion resumes (_resume)
 RESUME_RATE = 30.0  # fade starts and re-entries tried per second (_resume)

@@ -42,7 +42,7 @@ def settings_digest(library: Path, model: Path) -> str:
     import numpy
     import onnxruntime
 
-    from ..core.library import LibrarySettings, cache_key, read_chain_entries, read_manifest
+    from ..core.search.library import LibrarySettings, cache_key, read_chain_entries, read_manifest
 
     parts = {
         "library": cache_key(read_manifest(library), LibrarySettings(), {}, read_chain_entries(library)),

@@ -6,10 +6,10 @@ import bpy
 import numpy as np
 import pytest
 
-from reactive_anim.blender import action_io, bvh_import
-from reactive_anim.core import bvh, quat
-from reactive_anim.core.errors import SkeletonError
-from reactive_anim.core.skeleton import Motion
+from reactive_anim.blender.character import action_io, bvh_import
+from reactive_anim.core.model import bvh, quat
+from reactive_anim.core.model.errors import SkeletonError
+from reactive_anim.core.model.skeleton import Motion
 from tests.support.actions import keyframes
 from tests.support.mocap import require_mocap
 

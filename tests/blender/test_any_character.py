@@ -8,11 +8,14 @@ import bpy
 import numpy as np
 import pytest
 
-from reactive_anim.blender import action_io, bake, bvh_import, impacts
-from reactive_anim.core import quat, retarget
-from reactive_anim.core.casting import _sole
-from reactive_anim.core.roles import RIG_PRESETS, assign_roles
-from reactive_anim.core.skeleton import Skeleton
+from reactive_anim.blender.bake import bake
+from reactive_anim.blender.character import action_io, bvh_import
+from reactive_anim.blender.impacts import impacts
+from reactive_anim.core.model import quat
+from reactive_anim.core.model.roles import RIG_PRESETS, assign_roles
+from reactive_anim.core.model.skeleton import Skeleton
+from reactive_anim.core.transition import retarget
+from reactive_anim.core.transition.casting import _sole
 from tests.support.mocap import require_mocap
 from tools.devkit.skeletons import WALK, role_bone_angles, turned_chain
 

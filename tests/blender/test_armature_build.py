@@ -8,9 +8,9 @@ import bpy
 import numpy as np
 import pytest
 
-from reactive_anim.blender import action_io, armature_build, bvh_import
-from reactive_anim.core.errors import SkeletonError
-from reactive_anim.core.skeleton import Skeleton
+from reactive_anim.blender.character import action_io, armature_build, bvh_import
+from reactive_anim.core.model.errors import SkeletonError
+from reactive_anim.core.model.skeleton import Skeleton
 from tests.support.mocap import require_mocap
 from tools.devkit.blender_bvh import import_with_blender
 

@@ -1,4 +1,4 @@
-"""The bake that never blocks the UI (blender/worker.py, bake_ops.py): the core runs in a real
+"""The bake that never blocks the UI (blender/bake/worker.py, bake_ops.py): the core runs in a real
 worker thread and the main thread polls it, step by step, as the modal operator's timer does;
 then the operator's last step writes the result. Compared with the synchronous operator. The
 modal operator's event handling (worker.ModalRun) is driven event by event with a stand-in for
@@ -11,8 +11,8 @@ import time
 import bpy
 import pytest
 
-from reactive_anim.blender import bake, worker
-from reactive_anim.core.errors import Cancelled, LibraryError, SkeletonError
+from reactive_anim.blender.bake import bake, worker
+from reactive_anim.core.model.errors import Cancelled, LibraryError, SkeletonError
 from tests.support.actions import keyframes
 from tests.support.bake_scene import blend_snapshot, library_without_falls, walk_with_impacts
 

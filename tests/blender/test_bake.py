@@ -1,4 +1,4 @@
-"""The bake and clear operators (blender/bake.py) end to end: the sample walk imported, impact markers,
+"""The bake and clear operators (blender/bake/bake.py) end to end: the sample walk imported, impact markers,
 the sample library, real physics and search, the reacted action written; failures leave no trace."""
 
 from __future__ import annotations
@@ -7,9 +7,11 @@ import bpy
 import numpy as np
 import pytest
 
-from reactive_anim.blender import action_io, bake, bake_ops, impacts, resources
-from reactive_anim.core import quat
-from reactive_anim.core.classes import CLASS_SLUGS
+from reactive_anim.blender.bake import bake, bake_ops, resources
+from reactive_anim.blender.character import action_io
+from reactive_anim.blender.impacts import impacts
+from reactive_anim.core.model import quat
+from reactive_anim.core.model.classes import CLASS_SLUGS
 from tests.support.actions import fcurves, keyframes
 from tests.support.bake_scene import blend_snapshot, library_without_falls, walk_with_impacts
 

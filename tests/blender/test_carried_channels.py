@@ -13,8 +13,10 @@ import numpy as np
 import pytest
 from mathutils import Matrix
 
-from reactive_anim.blender import action_io, bake, impacts
-from reactive_anim.core.skeleton import Motion
+from reactive_anim.blender.bake import bake
+from reactive_anim.blender.character import action_io
+from reactive_anim.blender.impacts import impacts
+from reactive_anim.core.model.skeleton import Motion
 from tests.support.actions import fcurves, keyframes, values_before
 from tests.support.bake_scene import walk_with_impacts
 

@@ -10,8 +10,8 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from reactive_anim.blender import action_io
-from reactive_anim.core import bvh
+from reactive_anim.blender.character import action_io
+from reactive_anim.core.model import bvh
 
 REPO = Path(__file__).resolve().parents[2]
 WALK = REPO / "sample_clips" / "walk.bvh"

@@ -12,7 +12,9 @@ import bpy
 import numpy as np
 
 from reactive_anim import cli
-from reactive_anim.blender import action_io, bake, bvh_import, impacts
+from reactive_anim.blender.bake import bake
+from reactive_anim.blender.character import action_io, bvh_import
+from reactive_anim.blender.impacts import impacts
 
 REPO = Path(__file__).resolve().parents[2]
 WALK = REPO / "sample_clips" / "walk.bvh"

@@ -1,4 +1,4 @@
-"""Constraints and drivers a bake consumes (blender/consumed.py): the reacted keys hold the pose
+"""Constraints and drivers a bake consumes (blender/bake/consumed.py): the reacted keys hold the pose
 Blender evaluated with them, so while the reacted action plays they are muted, not applied twice;
 Clear Reactions turns them back on, and a rebake reads the original as it played."""
 
@@ -7,7 +7,7 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
-from reactive_anim.blender import bake
+from reactive_anim.blender.bake import bake
 from tests.support.bake_scene import walk_with_impacts
 
 BEFORE_FIRST_IMPACT = range(1, 40, 6)  # walk_with_impacts hits first at frame 41

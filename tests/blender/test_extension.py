@@ -80,8 +80,8 @@ def user_repo():
     return next(r for r in bpy.context.preferences.extensions.repos if r.module == "user_default")
 
 
-def installed_function(name):  # the installed package's own bake helpers (blender/bake.py or resources.py)
-    for module_name in ("bake", "resources"):
+def installed_function(name):  # the installed package's own bake helpers (blender/bake/bake.py or resources.py)
+    for module_name in ("bake.bake", "bake.resources"):
         module = sys.modules.get(args["addon_module"] + ".blender." + module_name)
         if hasattr(module, name):
             return getattr(module, name)

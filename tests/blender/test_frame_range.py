@@ -1,4 +1,4 @@
-"""The scene's frame range after a bake or a preview (blender/bake.py, preview.py): it covers the
+"""The scene's frame range after a bake or a preview (blender/bake/bake.py, preview.py): it covers the
 reacted action, so pressing play shows the whole reaction; it never shrinks a range the animator
 set wider; undo, Clear Reactions and Discard Preview put back the animator's range."""
 
@@ -7,7 +7,9 @@ from __future__ import annotations
 import bpy
 import pytest
 
-from reactive_anim.blender import bake, bvh_import, impacts
+from reactive_anim.blender.bake import bake
+from reactive_anim.blender.character import bvh_import
+from reactive_anim.blender.impacts import impacts
 from tests.support.bake_scene import WALK
 
 WALK_RANGE = (1, 264)  # the sample walk's keys, the range its import sets

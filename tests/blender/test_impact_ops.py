@@ -1,4 +1,4 @@
-"""The animator's impact tools (blender/impact_ops.py, marker_sync.py, panels.py) driven through the
+"""The animator's impact tools (blender/impacts/impact_ops.py, marker_sync.py, panels.py) driven through the
 real operators: add from the view, edit, aim, jump, remove; markers moved, deleted and duplicated
 with Blender's own marker operators; every operator's poll message and its place in the menus."""
 
@@ -12,8 +12,10 @@ import bpy
 import numpy as np
 import pytest
 
-from reactive_anim.blender import impact_ops, impacts, marker_sync, panels, registry, settings
-from reactive_anim.core import quat
+from reactive_anim.blender import registry
+from reactive_anim.blender.impacts import impact_ops, impacts, marker_sync
+from reactive_anim.blender.ui import panels, settings
+from reactive_anim.core.model import quat
 from tests.support.bake_scene import walk_with_impacts
 
 

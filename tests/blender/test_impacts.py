@@ -1,4 +1,4 @@
-"""Impact markers (blender/impacts.py) on the real Blender: add, read, remove, save and reload."""
+"""Impact markers (blender/impacts/impacts.py) on the real Blender: add, read, remove, save and reload."""
 
 from __future__ import annotations
 
@@ -7,10 +7,11 @@ from pathlib import Path
 import bpy
 import pytest
 
-from reactive_anim.blender import bvh_import, impacts
-from reactive_anim.core.classes import CLASSES
-from reactive_anim.core.errors import ImpactError
-from reactive_anim.core.impact import Impact
+from reactive_anim.blender.character import bvh_import
+from reactive_anim.blender.impacts import impacts
+from reactive_anim.core.model.classes import CLASSES
+from reactive_anim.core.model.errors import ImpactError
+from reactive_anim.core.model.impact import Impact
 
 WALK = Path(__file__).resolve().parents[2] / "sample_clips" / "walk.bvh"  # 264 frames, keys on frames 1-264
 FORWARD = (0.0, -1.0, 0.0)  # the sample walk walks along -Y

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import reactive_anim
-from reactive_anim.blender import action_io, bvh_import
-from reactive_anim.core import quat
+from reactive_anim.blender.character import action_io, bvh_import
+from reactive_anim.core.model import quat
 from tests.support.mocap import require_mocap
 
 MALFORMED = Path(__file__).resolve().parents[1] / "data" / "malformed"

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from reactive_anim.blender import resources
+from reactive_anim.blender.bake import resources
 
 
 @pytest.fixture

@@ -1,4 +1,4 @@
-"""The impact overlay (blender/overlay.py): arrow geometry on a real armature, registration in background mode."""
+"""The impact overlay (blender/ui/overlay.py): arrow geometry on a real armature, registration in background mode."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from mathutils import Euler
 
-from reactive_anim.blender import impacts, overlay, settings
+from reactive_anim.blender.impacts import impacts
+from reactive_anim.blender.ui import overlay, settings
 
 PUSH = (0.0, 1.0, 0.0)  # pushed along +Y: the arrow comes from -Y
 

@@ -9,7 +9,8 @@ import time
 
 import bpy
 
-from reactive_anim.blender import bake, panels, settings, worker
+from reactive_anim.blender.bake import bake, worker
+from reactive_anim.blender.ui import panels, settings
 from tests.support.bake_scene import walk_with_impacts
 from tests.support.ui_recorder import Recorder, draw
 

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 from mathutils import Matrix
 
-from reactive_anim.blender import bake, impacts
+from reactive_anim.blender.bake import bake
+from reactive_anim.blender.impacts import impacts
 from tests.support.actions import fcurves, values_before
 from tests.support.bake_scene import walk_with_impacts
 

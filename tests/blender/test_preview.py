@@ -1,4 +1,4 @@
-"""Preview before committing (blender/preview.py): the reacted motion on a ghost sharing the
+"""Preview before committing (blender/bake/preview.py): the reacted motion on a ghost sharing the
 character's armature data; Discard leaves no trace, Accept equals a direct bake."""
 
 from __future__ import annotations
@@ -7,7 +7,9 @@ import bpy
 import numpy as np
 import pytest
 
-from reactive_anim.blender import action_io, bake, preview, settings
+from reactive_anim.blender.bake import bake, preview
+from reactive_anim.blender.character import action_io
+from reactive_anim.blender.ui import settings
 from tests.support.actions import keyframes
 from tests.support.bake_scene import blend_snapshot, walk_with_impacts
 

@@ -13,9 +13,9 @@ import bpy
 import numpy as np
 import pytest
 
-from reactive_anim.blender import action_io, armature_build, bvh_import
-from reactive_anim.core import quat
-from reactive_anim.core.skeleton import Skeleton
+from reactive_anim.blender.character import action_io, armature_build, bvh_import
+from reactive_anim.core.model import quat
+from reactive_anim.core.model.skeleton import Skeleton
 from tests.support.actions import fcurves
 from tests.support.mocap import require_mocap
 

@@ -10,7 +10,9 @@ from pathlib import Path
 import bpy
 import pytest
 
-from reactive_anim.blender import bake, bake_ops, bvh_import, impacts
+from reactive_anim.blender.bake import bake, bake_ops
+from reactive_anim.blender.character import bvh_import
+from reactive_anim.blender.impacts import impacts
 from tests.support.bake_scene import FORWARD, WALK, blend_snapshot, walk_with_impacts
 
 

@@ -16,7 +16,9 @@ import bpy
 import pytest
 
 import reactive_anim
-from reactive_anim.blender import marker_sync, overlay, registry
+from reactive_anim.blender import registry
+from reactive_anim.blender.impacts import marker_sync
+from reactive_anim.blender.ui import overlay
 
 
 @pytest.fixture

@@ -1,4 +1,4 @@
-"""The role map editor (blender/role_map.py): a rig whose bone names are not recognised cannot bake,
+"""The role map editor (blender/character/role_map.py): a rig whose bone names are not recognised cannot bake,
 and says exactly which roles are missing; mapped in the editor (by hand or a preset), it bakes."""
 
 from __future__ import annotations
@@ -6,8 +6,11 @@ from __future__ import annotations
 import bpy
 import pytest
 
-from reactive_anim.blender import bake, impacts, panels, role_map, settings
-from reactive_anim.core.roles import ALL_ROLES, REQUIRED_ROLES, RIG_PRESETS
+from reactive_anim.blender.bake import bake
+from reactive_anim.blender.character import role_map
+from reactive_anim.blender.impacts import impacts
+from reactive_anim.blender.ui import panels, settings
+from reactive_anim.core.model.roles import ALL_ROLES, REQUIRED_ROLES, RIG_PRESETS
 from tests.support.bake_scene import walk_with_impacts
 from tests.support.ui_recorder import draw
 

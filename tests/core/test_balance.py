@@ -1,4 +1,4 @@
-"""Balance during CD (core/balance.py): the root assist keeps a tracked character up, a small push
+"""Balance during CD (core/physics/balance.py): the root assist keeps a tracked character up, a small push
 does not topple it, a large one still does, nothing skates or sinks. The sample walk and idle only.
 
 "Kept up": see tools/devkit/tracking.py (pelvis within 10 cm of the target's height, mean joint
@@ -10,11 +10,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh, quat
-from reactive_anim.core.balance import RootAssist
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.ragdoll import build_ragdoll
-from reactive_anim.core.simulate import SimResult, Workspace, mocap_qpos, simulate_impact, track
+from reactive_anim.core.model import bvh, quat
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.physics.balance import RootAssist
+from reactive_anim.core.physics.ragdoll import build_ragdoll
+from reactive_anim.core.physics.simulate import SimResult, Workspace, mocap_qpos, simulate_impact, track
 from tests.support.mocap import REPO
 from tools.devkit.poses import ground_axes
 from tools.devkit.tracking import kept_up_seconds

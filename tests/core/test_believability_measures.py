@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from reactive_anim.core import quat
-from reactive_anim.core.skeleton import Motion, Skeleton
+from reactive_anim.core.model import quat
+from reactive_anim.core.model.skeleton import Motion, Skeleton
 from tools.devkit import believability as bl
 
 FPS = 30.0

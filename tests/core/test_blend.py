@@ -1,14 +1,14 @@
-"""Blends (core/blend.py): the fade weights, the CF blend's ends, and the placement of a clip."""
+"""Blends (core/transition/blend.py): the fade weights, the CF blend's ends, and the placement of a clip."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh, quat
-from reactive_anim.core.blend import blend, blend_travel, fade_weights, place
-from reactive_anim.core.errors import SkeletonError
-from reactive_anim.core.skeleton import Motion, Skeleton
+from reactive_anim.core.model import bvh, quat
+from reactive_anim.core.model.errors import SkeletonError
+from reactive_anim.core.model.skeleton import Motion, Skeleton
+from reactive_anim.core.transition.blend import blend, blend_travel, fade_weights, place
 from tests.support.mocap import REPO
 
 

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from reactive_anim.core import bvh
-from reactive_anim.core.errors import BVHError
+from reactive_anim.core.model import bvh
+from reactive_anim.core.model.errors import BVHError
 
 MALFORMED = Path(__file__).resolve().parents[1] / "data" / "malformed"
 

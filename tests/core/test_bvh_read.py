@@ -8,8 +8,8 @@ import re
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh, quat
-from reactive_anim.core.errors import BVHError
+from reactive_anim.core.model import bvh, quat
+from reactive_anim.core.model.errors import BVHError
 from tests.support.mocap import MOCAP, mocap_files, require_mocap
 
 ORDERS = ["".join(p) for p in itertools.permutations("XYZ")]

@@ -7,7 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh, quat
+from reactive_anim.core.model import bvh, quat
 from tests.support.mocap import require_mocap
 
 ORDERS = ["".join(p) for p in itertools.permutations("XYZ")]

@@ -1,4 +1,4 @@
-"""A character on another skeleton than the library's (core/casting.py, wired into react.py): the
+"""A character on another skeleton than the library's (core/transition/casting.py, wired into react.py): the
 query is retargeted onto the library's skeleton, the chosen clip onto the character's."""
 
 from __future__ import annotations
@@ -8,15 +8,16 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh, quat, retarget
-from reactive_anim.core.casting import Casting
-from reactive_anim.core.classifier import load_classifier
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.library import load_library
+from reactive_anim.core.classify.classifier import load_classifier
+from reactive_anim.core.model import bvh, quat
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.model.roles import assign_roles
+from reactive_anim.core.model.skeleton import Motion
 from reactive_anim.core.react import ReactionSettings, character_ragdoll, react
-from reactive_anim.core.roles import assign_roles
-from reactive_anim.core.search import search
-from reactive_anim.core.skeleton import Motion
+from reactive_anim.core.search.library import load_library
+from reactive_anim.core.search.search import search
+from reactive_anim.core.transition import retarget
+from reactive_anim.core.transition.casting import Casting
 from tests.support.mocap import REPO, require_mocap
 from tools.devkit.library_clips import write_toml
 from tools.devkit.poses import limb_joints

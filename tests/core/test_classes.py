@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from reactive_anim.core.classes import CLASS_SLUGS, CLASSES, is_fall, mirror_image, reaction_class
+from reactive_anim.core.model.classes import CLASS_SLUGS, CLASSES, is_fall, mirror_image, reaction_class
 
 # The enum ids saved .blend files hold for a marker's forced reaction, as first given. A class may be
 # added (with a new id) or the table reordered; a row here may never change or go.

@@ -19,14 +19,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh
-from reactive_anim.core.classes import CLASS_SLUGS
-from reactive_anim.core.classifier import DEFAULT_MODEL, Classifier, load_classifier
-from reactive_anim.core.errors import ClassifierError
-from reactive_anim.core.features import EXTENDED_FEATURES, FeatureReader
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.ragdoll import build_ragdoll
-from reactive_anim.core.simulate import simulate_impact
+from reactive_anim.core.classify.classifier import DEFAULT_MODEL, Classifier, load_classifier
+from reactive_anim.core.classify.features import EXTENDED_FEATURES, FeatureReader
+from reactive_anim.core.model import bvh
+from reactive_anim.core.model.classes import CLASS_SLUGS
+from reactive_anim.core.model.errors import ClassifierError
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.physics.ragdoll import build_ragdoll
+from reactive_anim.core.physics.simulate import simulate_impact
 from tests.support.mocap import require_mocap
 from tools.classifier import nets
 from tools.classifier.pushes import plan_pushes, simulate_pushes

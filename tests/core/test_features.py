@@ -1,4 +1,4 @@
-"""The classifier's inputs (core/features.py) on the project's own clips: no ../shared needed.
+"""The classifier's inputs (core/classify/features.py) on the project's own clips: no ../shared needed.
 
 - Invariance: the features of a reaction state do not change when the whole state is turned about
   the vertical and moved (any yaw, any ground offset, the floor moving with it); and a simulated
@@ -16,10 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh, quat
-from reactive_anim.core.capture import Support
-from reactive_anim.core.errors import SkeletonError
-from reactive_anim.core.features import (
+from reactive_anim.core.classify.capture import Support
+from reactive_anim.core.classify.features import (
     EXTENDED_FEATURES,
     PAPER_FEATURES,
     Body,
@@ -29,10 +27,12 @@ from reactive_anim.core.features import (
     reaction_features,
     select,
 )
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.ragdoll import build_ragdoll
-from reactive_anim.core.simulate import simulate_impact
-from reactive_anim.core.skeleton import Motion
+from reactive_anim.core.model import bvh, quat
+from reactive_anim.core.model.errors import SkeletonError
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.model.skeleton import Motion
+from reactive_anim.core.physics.ragdoll import build_ragdoll
+from reactive_anim.core.physics.simulate import simulate_impact
 
 SAMPLE_CLIPS = Path(__file__).resolve().parents[2] / "sample_clips"
 IMPACT_FRAME = 60.9

@@ -1,4 +1,4 @@
-"""Planted feet held across a reaction's seams (core/footing.py), on the project's own clips.
+"""Planted feet held across a reaction's seams (core/transition/footing.py), on the project's own clips.
 
 - A standing body dragged along the floor while the sources cross-fade keeps its feet where they
   stood, up to the hold's limit (beyond it the feet slide the rest), and to the end where they
@@ -19,15 +19,15 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh, quat
-from reactive_anim.core.classifier import load_classifier
-from reactive_anim.core.footing import CATCH_UP_FINISH, LIFT_EASE, MAX_OFFSET, hold_feet, lift_onto_floor
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.library import load_library
+from reactive_anim.core.classify.classifier import load_classifier
+from reactive_anim.core.model import bvh, quat
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.model.roles import assign_roles
+from reactive_anim.core.model.skeleton import Motion
 from reactive_anim.core.react import ReactionSettings, character_ragdoll, react
-from reactive_anim.core.retarget import foot_points, leg_length, lowest_foot_point
-from reactive_anim.core.roles import assign_roles
-from reactive_anim.core.skeleton import Motion
+from reactive_anim.core.search.library import load_library
+from reactive_anim.core.transition.footing import CATCH_UP_FINISH, LIFT_EASE, MAX_OFFSET, hold_feet, lift_onto_floor
+from reactive_anim.core.transition.retarget import foot_points, leg_length, lowest_foot_point
 from tests.support.mocap import REPO
 from tools.devkit.poses import ground_axes
 

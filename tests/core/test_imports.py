@@ -76,9 +76,9 @@ def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
 def test_the_graph_sees_the_core_modules() -> None:
     """A check on the walker itself: the search depends on the library, which depends on Eq. 1."""
     graph = _graph()
-    assert "reactive_anim.core.library" in graph["reactive_anim.core.search"]
-    assert "reactive_anim.core.window" in graph["reactive_anim.core.library"]
-    assert "reactive_anim.core.quat" in graph["reactive_anim.core.skeleton"]
+    assert "reactive_anim.core.search.library" in graph["reactive_anim.core.search.search"]
+    assert "reactive_anim.core.search.window" in graph["reactive_anim.core.search.library"]
+    assert "reactive_anim.core.model.quat" in graph["reactive_anim.core.model.skeleton"]
 
 
 def test_no_import_cycles() -> None:

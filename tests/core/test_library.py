@@ -1,4 +1,4 @@
-"""Reaction library (core/library.py, paper 2.4): manifest, compile, cache, errors naming the clip.
+"""Reaction library (core/search/library.py, paper 2.4): manifest, compile, cache, errors naming the clip.
 
 Clips are made from the project's own sample walk (sample_clips/walk.bvh) with seeded smooth
 changes, written as BVH files into tmp_path, so these tests need no shared mocap.
@@ -11,11 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh, quat
-from reactive_anim.core import library as library_module
-from reactive_anim.core.classes import CLASS_SLUGS
-from reactive_anim.core.errors import LibraryError
-from reactive_anim.core.library import (
+from reactive_anim.core.model import bvh, quat
+from reactive_anim.core.model.classes import CLASS_SLUGS
+from reactive_anim.core.model.errors import LibraryError
+from reactive_anim.core.model.skeleton import Motion, Skeleton
+from reactive_anim.core.search import library as library_module
+from reactive_anim.core.search.library import (
     Library,
     LibrarySettings,
     compile_clip,
@@ -24,9 +25,8 @@ from reactive_anim.core.library import (
     read_chains,
     read_manifest,
 )
-from reactive_anim.core.search import search
-from reactive_anim.core.skeleton import Motion, Skeleton
-from reactive_anim.core.window import Query
+from reactive_anim.core.search.search import search
+from reactive_anim.core.search.window import Query
 from tests.support.mocap import REPO
 from tools.devkit.library_clips import make_clip, write_toml
 

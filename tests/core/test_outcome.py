@@ -1,5 +1,5 @@
-"""The outcome rule (core/outcome.py) on constructed states, and the support geometry it stands on
-(core/capture.py). No simulation: each state is written down, so each case tests one clause.
+"""The outcome rule (core/classify/outcome.py) on constructed states, and the support geometry it stands on
+(core/classify/capture.py). No simulation: each state is written down, so each case tests one clause.
 
 The constructed character faces +X (its left is +Y), stands on two feet 20 cm apart whose soles run
 from 5 cm behind to 15 cm ahead of the centre of mass, legs 0.9 m long, centre of mass 1 m up
@@ -14,10 +14,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from reactive_anim.core import outcome
-from reactive_anim.core.capture import Support, convex_hull, nearest_in_polygon
-from reactive_anim.core.features import Body, ReactionState
-from reactive_anim.core.outcome import COLLAPSE_HEIGHT, judge
+from reactive_anim.core.classify import outcome
+from reactive_anim.core.classify.capture import Support, convex_hull, nearest_in_polygon
+from reactive_anim.core.classify.features import Body, ReactionState
+from reactive_anim.core.classify.outcome import COLLAPSE_HEIGHT, judge
 
 LEG = 0.9
 JOINTS = {"pelvis": 0, "chest": 1, "head": 2, "hip_l": 3, "hip_r": 4, "shoulder_l": 5, "shoulder_r": 6}

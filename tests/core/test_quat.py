@@ -7,7 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
-from reactive_anim.core import quat
+from reactive_anim.core.model import quat
 
 ORDERS = ["".join(p) for p in itertools.permutations("XYZ")]
 AXES = {"X": np.array([1.0, 0.0, 0.0]), "Y": np.array([0.0, 1.0, 0.0]), "Z": np.array([0.0, 0.0, 1.0])}

@@ -1,4 +1,4 @@
-"""Ragdoll (core/ragdoll.py) and Impact (core/impact.py): real MuJoCo models built from real skeletons.
+"""Ragdoll (core/physics/ragdoll.py) and Impact (core/model/impact.py): real MuJoCo models built from real skeletons.
 
 Masses per body equal the profile (paper Table 1, scaled); every role has a body; the skeletons of
 all three shared datasets and the project's sample build; mocap -> joint angles -> pose reproduces
@@ -12,10 +12,12 @@ import mujoco
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh, quat
-from reactive_anim.core.errors import ImpactError, SimulationError, SkeletonError
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.ragdoll import (
+from reactive_anim.core.model import bvh, quat
+from reactive_anim.core.model.errors import ImpactError, SimulationError, SkeletonError
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.model.roles import assign_roles
+from reactive_anim.core.model.skeleton import Skeleton
+from reactive_anim.core.physics.ragdoll import (
     ANATOMICAL_LIMITS,
     BODY_ROLES,
     PAPER_LIMITS,
@@ -23,8 +25,7 @@ from reactive_anim.core.ragdoll import (
     build_ragdoll,
     part_of,
 )
-from reactive_anim.core.roles import assign_roles
-from reactive_anim.core.simulate import (
+from reactive_anim.core.physics.simulate import (
     Workspace,
     _body_local_rotations,
     _mocap_table,
@@ -33,7 +34,6 @@ from reactive_anim.core.simulate import (
     _to_motion,
     simulate_impact,
 )
-from reactive_anim.core.skeleton import Skeleton
 from tests.support.mocap import REPO, require_mocap
 
 SAMPLE_WALK = REPO / "sample_clips" / "walk.bvh"

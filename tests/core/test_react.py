@@ -6,17 +6,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh, quat
-from reactive_anim.core.blend import place
-from reactive_anim.core.classes import CLASS_SLUGS, CLASSES
-from reactive_anim.core.classifier import load_classifier
-from reactive_anim.core.errors import Cancelled, ImpactError, LibraryError
-from reactive_anim.core.footing import MAX_OFFSET
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.library import load_library
+from reactive_anim.core.classify.classifier import load_classifier
+from reactive_anim.core.model import bvh, quat
+from reactive_anim.core.model.classes import CLASS_SLUGS, CLASSES
+from reactive_anim.core.model.errors import Cancelled, ImpactError, LibraryError
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.model.roles import assign_roles
 from reactive_anim.core.react import STILL_KEPT, ReactionSettings, bake_reactions, character_ragdoll, react
-from reactive_anim.core.retarget import leg_length
-from reactive_anim.core.roles import assign_roles
+from reactive_anim.core.search.library import load_library
+from reactive_anim.core.transition.blend import place
+from reactive_anim.core.transition.footing import MAX_OFFSET
+from reactive_anim.core.transition.retarget import leg_length
 from tests.support.mocap import REPO, require_mocap
 from tools.devkit import believability as bl
 from tools.devkit.poses import ground_axes, leg_joints

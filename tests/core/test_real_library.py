@@ -20,13 +20,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh
-from reactive_anim.core.casting import Casting
-from reactive_anim.core.classifier import load_classifier
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.library import Library, load_library
+from reactive_anim.core.classify.classifier import load_classifier
+from reactive_anim.core.model import bvh
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.model.skeleton import Motion, frame_times
 from reactive_anim.core.react import KEPT_CLIP, ReactionSettings, character_ragdoll, react
-from reactive_anim.core.skeleton import Motion, frame_times
+from reactive_anim.core.search.library import Library, load_library
+from reactive_anim.core.transition.casting import Casting
 from tests.support.mocap import REPO, require_mocap
 from tools.devkit.poses import ground_axes
 

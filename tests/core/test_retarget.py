@@ -1,4 +1,4 @@
-"""Retargeting (core/retarget.py): the sample walk played by skeletons with other rest poses and
+"""Retargeting (core/transition/retarget.py): the sample walk played by skeletons with other rest poses and
 proportions (a T-pose variant of the sample skeleton made here; the shared CMU-derived iClone,
 Bandai Namco and CMU skeletons where ../shared is present), and back again."""
 
@@ -9,10 +9,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh, quat, retarget
-from reactive_anim.core.errors import SkeletonError
-from reactive_anim.core.roles import SIDES, assign_roles
-from reactive_anim.core.skeleton import Motion, Skeleton
+from reactive_anim.core.model import bvh, quat
+from reactive_anim.core.model.errors import SkeletonError
+from reactive_anim.core.model.roles import SIDES, assign_roles
+from reactive_anim.core.model.skeleton import Motion, Skeleton
+from reactive_anim.core.transition import retarget
 from tests.support.mocap import REPO, mocap_files
 from tools.devkit.skeletons import WALK, role_bone_angles, t_pose_variant
 

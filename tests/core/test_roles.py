@@ -1,4 +1,4 @@
-"""Joint roles (core/roles.py): the paper's Table 1/2 joints found on every skeleton we meet.
+"""Joint roles (core/model/roles.py): the paper's Table 1/2 joints found on every skeleton we meet.
 
 Real skeletons: every shared mocap file gets its dataset's exact role table, and left roles sit on
 the character's left by geometry (independent of names). Synthetic skeletons (Mixamo, the common
@@ -13,9 +13,9 @@ import re
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh
-from reactive_anim.core.errors import SkeletonError
-from reactive_anim.core.roles import (
+from reactive_anim.core.model import bvh
+from reactive_anim.core.model.errors import SkeletonError
+from reactive_anim.core.model.roles import (
     ALL_ROLES,
     OPTIONAL_ROLES,
     REQUIRED_ROLES,
@@ -23,7 +23,7 @@ from reactive_anim.core.roles import (
     assign_roles,
     read_joint_name,
 )
-from reactive_anim.core.skeleton import Skeleton
+from reactive_anim.core.model.skeleton import Skeleton
 from tests.support.mocap import MOCAP, mocap_files, require_mocap
 
 # ---------------------------------------------------------------------------------------------

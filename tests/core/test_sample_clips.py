@@ -38,10 +38,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh, quat
-from reactive_anim.core.classes import CLASS_SLUGS, is_fall, reaction_class
-from reactive_anim.core.classes import CLASSES as ALL_CLASSES
-from reactive_anim.core.skeleton import Motion
+from reactive_anim.core.model import bvh, quat
+from reactive_anim.core.model.classes import CLASS_SLUGS, is_fall, reaction_class
+from reactive_anim.core.model.classes import CLASSES as ALL_CLASSES
+from reactive_anim.core.model.skeleton import Motion
 from tools.sample_clips import catalogue, falls
 from tools.sample_clips.skeleton import sample_skeleton
 

@@ -1,4 +1,4 @@
-"""The jump search (core/search.py, paper 2.4, Eq. 1, Table 2): exact, alignment-invariant, fast.
+"""The jump search (core/search/search.py, paper 2.4, Eq. 1, Table 2): exact, alignment-invariant, fast.
 
 - Fast equals the one-candidate-at-a-time reference (tools/devkit/search_reference.py) in match and
   cost on random queries (synthetic library), real ones (shared mocap) and the pipeline's own (BC
@@ -17,14 +17,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh, quat, search_index
-from reactive_anim.core.errors import LibraryError
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.library import Library, load_library
+from reactive_anim.core.model import bvh, quat
+from reactive_anim.core.model.errors import LibraryError
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.model.skeleton import Motion
 from reactive_anim.core.react import character_ragdoll, impact_query
-from reactive_anim.core.search import search, search_with_fallback
-from reactive_anim.core.skeleton import Motion
-from reactive_anim.core.window import (
+from reactive_anim.core.search import search_index
+from reactive_anim.core.search.library import Library, load_library
+from reactive_anim.core.search.search import search, search_with_fallback
+from reactive_anim.core.search.window import (
     SEARCH_ROLES,
     TABLE2_POSITION_WEIGHTS,
     TABLE2_ROTATION_WEIGHTS,

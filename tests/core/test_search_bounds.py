@@ -1,4 +1,4 @@
-"""The bounds the jump search rules windows out with (core/search_bounds.py) are true bounds of
+"""The bounds the jump search rules windows out with (core/search/search_bounds.py) are true bounds of
 Eq. 1: every window summary bound and node box bound at or below the exact cost (window.py), the
 near-exact interval around it; on queries near and far from the library, from clips outside it, at
 zero cost, and the pipeline's own (BC windows of pushes, core.react.impact_query)."""
@@ -10,12 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh, quat, search_bounds
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.library import Library, load_library
+from reactive_anim.core.model import bvh, quat
+from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.react import character_ragdoll, impact_query
-from reactive_anim.core.search_index import build_index
-from reactive_anim.core.window import (
+from reactive_anim.core.search import search_bounds
+from reactive_anim.core.search.library import Library, load_library
+from reactive_anim.core.search.search_index import build_index
+from reactive_anim.core.search.window import (
     TABLE2_POSITION_WEIGHTS,
     TABLE2_ROTATION_WEIGHTS,
     Query,

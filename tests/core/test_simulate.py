@@ -1,4 +1,4 @@
-"""Simulation (core/simulate.py): real MuJoCo on a real walk (Bandai Namco, 30 fps).
+"""Simulation (core/physics/simulate.py): real MuJoCo on a real walk (Bandai Namco, 30 fps).
 
 CD tracking keeps a walker on its path for a transition's length and the test prints how long pure
 PD tracking holds before it drifts or falls; a push shows in the centre of mass's velocity and a
@@ -13,11 +13,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh
-from reactive_anim.core.errors import ImpactError, SimulationError
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.ragdoll import build_ragdoll
-from reactive_anim.core.simulate import simulate_impact, state_from_mocap, track
+from reactive_anim.core.model import bvh
+from reactive_anim.core.model.errors import ImpactError, SimulationError
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.physics.ragdoll import build_ragdoll
+from reactive_anim.core.physics.simulate import simulate_impact, state_from_mocap, track
 from tests.support.mocap import REPO, require_mocap
 
 WALK = "bandai_namco/dataset-1/dataset-1_walk_normal_001.bvh"

@@ -28,12 +28,12 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh, quat
-from reactive_anim.core.errors import ImpactError
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.ragdoll import Ragdoll, build_ragdoll
-from reactive_anim.core.simulate import MAX_HIT_SPEED, SimResult, simulate_impact, track
-from reactive_anim.core.skeleton import Motion
+from reactive_anim.core.model import bvh, quat
+from reactive_anim.core.model.errors import ImpactError
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.model.skeleton import Motion
+from reactive_anim.core.physics.ragdoll import Ragdoll, build_ragdoll
+from reactive_anim.core.physics.simulate import MAX_HIT_SPEED, SimResult, simulate_impact, track
 from tests.support.mocap import REPO
 from tools.devkit.poses import ground_axes
 

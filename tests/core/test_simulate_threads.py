@@ -1,4 +1,4 @@
-"""Simulation state is per run (core/simulate.py): a Ragdoll is never changed by a simulation, and
+"""Simulation state is per run (core/physics/simulate.py): a Ragdoll is never changed by a simulation, and
 simulations on two threads at once give bit-identical results to the same runs one after the other
 (a worker thread baking while a preview simulates). Runs on the project's own sample walk."""
 
@@ -9,11 +9,11 @@ import threading
 import numpy as np
 import pytest
 
-from reactive_anim.core import bvh
-from reactive_anim.core.errors import SimulationError
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.ragdoll import build_ragdoll
-from reactive_anim.core.simulate import SimResult, Workspace, simulate_impact, track
+from reactive_anim.core.model import bvh
+from reactive_anim.core.model.errors import SimulationError
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.physics.ragdoll import build_ragdoll
+from reactive_anim.core.physics.simulate import SimResult, Workspace, simulate_impact, track
 from tests.support.mocap import REPO
 
 IMPACTS = (Impact(30, "chest", (1.0, 0.0, 0.0), 120.0), Impact(52, "pelvis", (0.0, 1.0, 0.2), 200.0))

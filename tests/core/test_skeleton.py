@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from reactive_anim.core import bvh, quat
-from reactive_anim.core.skeleton import forward_kinematics
+from reactive_anim.core.model import bvh, quat
+from reactive_anim.core.model.skeleton import forward_kinematics
 from tests.support.mocap import REPO
 
 

@@ -15,7 +15,8 @@ from pathlib import Path
 
 import bpy
 
-from reactive_anim.blender import bvh_import, impacts
+from reactive_anim.blender.character import bvh_import
+from reactive_anim.blender.impacts import impacts
 from reactive_anim.farm.outputs import PARTIAL
 from tests.support.actions import keyframes
 

@@ -123,12 +123,12 @@ def snapshot() -> dict[str, Any]:
 
 
 def impact_markers() -> list[bpy.types.TimelineMarker]:
-    impacts = addon("blender.impacts")
+    impacts = addon("blender.impacts.impacts")
     return [m for m in bpy.context.scene.timeline_markers if impacts.is_impact_marker(m)]
 
 
 def not_running() -> bool:
-    return addon("blender.worker").running() is None
+    return addon("blender.bake.worker").running() is None
 
 
 def check(condition: bool, what: str, **seen: Any) -> None:
@@ -183,7 +183,7 @@ def add_impacts() -> Step:
         check(result == {"FINISHED"}, "add impact", result=result)
         yield 0.2
     markers = impact_markers()
-    data = [addon("blender.impacts").impact_data(m) for m in markers]
+    data = [addon("blender.impacts.impacts").impact_data(m) for m in markers]
     added = [(m.frame, d.bone) for m, d in zip(markers, data, strict=True)]
     check(added == [(60, "chest"), (150, "pelvis")], "two impacts where the animator put them", added=added)
     check(
@@ -240,7 +240,7 @@ def escape_cancels_a_long_bake() -> Step:
     check(snapshot() == before, "Esc left the file as it was", before=before, after=snapshot())
     for name in extra:
         marker = bpy.context.scene.timeline_markers[name]
-        click(bpy.ops.reactive_anim.remove_impact, uid=addon("blender.impacts").impact_data(marker).uid)
+        click(bpy.ops.reactive_anim.remove_impact, uid=addon("blender.impacts.impacts").impact_data(marker).uid)
     check(len(impact_markers()) == 2, "extra impacts removed")
 
 
@@ -300,7 +300,7 @@ def preview_discard_accept() -> Step:
 
 
 def drag_and_duplicate_a_marker() -> Step:
-    impacts = addon("blender.impacts")
+    impacts = addon("blender.impacts.impacts")
     scene = bpy.context.scene
     first = impact_markers()[0]
     for m in scene.timeline_markers:
@@ -331,7 +331,7 @@ def overlay_arrow_is_drawn() -> Step:
     """At an impact's frame its orange arrow is on screen at the hit bone; far from it, it is not."""
     armature = character()
     marker = impact_markers()[0]
-    data = addon("blender.impacts").impact_data(marker)
+    data = addon("blender.impacts.impacts").impact_data(marker)
     area("VIEW_3D")[1].spaces.active.show_region_ui = False  # the whole view for the character
     counts = {}
     for frame in (marker.frame, marker.frame + 60):
@@ -343,7 +343,7 @@ def overlay_arrow_is_drawn() -> Step:
         bone = armature.pose.bones[data.bone]
         tip = armature.matrix_world @ ((bone.head + bone.tail) / 2)
         if frame == marker.frame:
-            length = addon("blender.overlay").arrow_length(data.strength)
+            length = addon("blender.ui.overlay").arrow_length(data.strength)
             tail = tip - Vector(data.direction).normalized() * length
             ends = [view3d_utils.location_3d_to_region_2d(region, view.spaces.active.region_3d, p) for p in (tip, tail)]
             points = [screen_point(region, p.x, p.y) for p in ends]

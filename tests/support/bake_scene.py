@@ -8,7 +8,9 @@ from pathlib import Path
 
 import bpy
 
-from reactive_anim.blender import bake, bvh_import, impacts
+from reactive_anim.blender.bake import bake
+from reactive_anim.blender.character import bvh_import
+from reactive_anim.blender.impacts import impacts
 from tests.support.actions import keyframes
 
 WALK = Path(__file__).resolve().parents[2] / "sample_clips" / "walk.bvh"  # 264 frames at 60 fps, keys on 1-264

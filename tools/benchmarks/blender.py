@@ -27,7 +27,7 @@ def bench_blender() -> None:
     import bpy
 
     import reactive_anim
-    from reactive_anim.blender import action_io, bvh_import
+    from reactive_anim.blender.character import action_io, bvh_import
 
     reactive_anim.register()
     try:
@@ -54,8 +54,8 @@ def _bench_import_read(bpy, path: Path, label: str, *, runs: int, blender_runs: 
     F-curves read in numpy) and as before (our reader's check, Blender's importer; every frame
     evaluated), each the best of its runs from a fresh empty scene (the first imports in a process
     are up to 40% slower while memory is first allocated, so ours, cheap, gets more runs)."""
-    from reactive_anim.blender import action_io, bvh_import
-    from reactive_anim.core import bvh
+    from reactive_anim.blender.character import action_io, bvh_import
+    from reactive_anim.core.model import bvh
     from tools.devkit.blender_bvh import import_with_blender
 
     def import_and_read(importer, evaluate: bool) -> tuple[float, float, int, int]:
@@ -123,7 +123,8 @@ def _bench_write(bpy, bvh_import, action_io) -> None:
 def _bench_bake(bpy, bvh_import, action_io) -> None:
     """A bake of 20 impacts (chest and pelvis, from around the character, 40-250 N·s) on the sample
     walk repeated to 3,000 frames, as the bake operator does it (bake.bake_armature)."""
-    from reactive_anim.blender import bake, impacts, resources
+    from reactive_anim.blender.bake import bake, resources
+    from reactive_anim.blender.impacts import impacts
 
     from .react import push_impacts, repeated_walk
 

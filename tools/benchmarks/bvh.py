@@ -3,7 +3,7 @@ Z up)."""
 
 from __future__ import annotations
 
-from reactive_anim.core import bvh
+from reactive_anim.core.model import bvh
 from tools.devkit.mocap import MOCAP
 
 from .common import best_of, largest_mocap, report, skipped

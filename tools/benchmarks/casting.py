@@ -1,4 +1,4 @@
-"""Any-character figures (core/casting.py, core/retarget.py): the jump search's costs for the same
+"""Any-character figures (core/transition/casting.py, core/transition/retarget.py): the jump search's costs for the same
 kind of pushes on the sample walk and on walks of other skeletons (the shared iClone, Bandai Namco
 and CMU walks, and the sample walk on a T-pose variant of its skeleton), against the sample
 library; and the time to retarget each library clip onto those skeletons. Costs of the same size
@@ -13,12 +13,13 @@ from pathlib import Path
 
 import numpy as np
 
-from reactive_anim.core import bvh, retarget
-from reactive_anim.core.classifier import load_classifier
-from reactive_anim.core.library import load_library
+from reactive_anim.core.classify.classifier import load_classifier
+from reactive_anim.core.model import bvh
+from reactive_anim.core.model.roles import assign_roles
+from reactive_anim.core.model.skeleton import Motion
 from reactive_anim.core.react import react
-from reactive_anim.core.roles import assign_roles
-from reactive_anim.core.skeleton import Motion
+from reactive_anim.core.search.library import load_library
+from reactive_anim.core.transition import retarget
 from tools.devkit.mocap import MOCAP, REPO
 from tools.devkit.skeletons import WALK, t_pose_variant
 

@@ -75,7 +75,9 @@ def make_scene(path: str) -> None:
     import bpy
 
     import reactive_anim
-    from reactive_anim.blender import action_io, bvh_import, impacts, resources
+    from reactive_anim.blender.bake import resources
+    from reactive_anim.blender.character import action_io, bvh_import
+    from reactive_anim.blender.impacts import impacts
 
     from .react import push_impacts, repeated_walk
 

@@ -30,17 +30,17 @@ from pathlib import Path
 
 import numpy as np
 
-from reactive_anim.core import bvh
-from reactive_anim.core.casting import Casting
-from reactive_anim.core.classes import is_fall
-from reactive_anim.core.classifier import load_classifier
-from reactive_anim.core.errors import ReactiveAnimError
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.library import Library, load_library
+from reactive_anim.core.classify.classifier import load_classifier
+from reactive_anim.core.model import bvh
+from reactive_anim.core.model.classes import is_fall
+from reactive_anim.core.model.errors import ReactiveAnimError
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.model.skeleton import Motion, root_child
+from reactive_anim.core.physics.simulate import Workspace
 from reactive_anim.core.react import Reaction, ReactionSettings, character_ragdoll, react
-from reactive_anim.core.retarget import joint_path
-from reactive_anim.core.simulate import Workspace
-from reactive_anim.core.skeleton import Motion, root_child
+from reactive_anim.core.search.library import Library, load_library
+from reactive_anim.core.transition.casting import Casting
+from reactive_anim.core.transition.retarget import joint_path
 from tools.devkit import believability as bl
 from tools.devkit.mocap import MOCAP, REPO, mocap_files
 from tools.devkit.poses import ground_axes

@@ -14,13 +14,13 @@ from pathlib import Path
 
 import numpy as np
 
-from reactive_anim.core import bvh
-from reactive_anim.core.classifier import load_classifier
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.library import load_library
+from reactive_anim.core.classify.classifier import load_classifier
+from reactive_anim.core.model import bvh
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.model.skeleton import Motion
+from reactive_anim.core.physics.simulate import Workspace
 from reactive_anim.core.react import bake_reactions, character_ragdoll, react
-from reactive_anim.core.simulate import Workspace
-from reactive_anim.core.skeleton import Motion
+from reactive_anim.core.search.library import load_library
 from tools.devkit.mocap import REPO
 from tools.devkit.poses import ground_axes
 

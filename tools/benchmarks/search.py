@@ -33,16 +33,15 @@ from pathlib import Path
 
 import numpy as np
 
-from reactive_anim.core import bvh
-from reactive_anim.core.casting import Casting
-from reactive_anim.core.classes import CLASS_SLUGS
-from reactive_anim.core.classifier import load_classifier
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.library import ClipInfo, Library, load_library
+from reactive_anim.core.classify.classifier import load_classifier
+from reactive_anim.core.model import bvh
+from reactive_anim.core.model.classes import CLASS_SLUGS
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.physics.simulate import Workspace
 from reactive_anim.core.react import character_ragdoll, impact_query
-from reactive_anim.core.search_index import Best, find_best
-from reactive_anim.core.simulate import Workspace
-from reactive_anim.core.window import (
+from reactive_anim.core.search.library import ClipInfo, Library, load_library
+from reactive_anim.core.search.search_index import Best, find_best
+from reactive_anim.core.search.window import (
     TABLE2_POSITION_WEIGHTS,
     TABLE2_ROTATION_WEIGHTS,
     FrameFeatures,
@@ -51,6 +50,7 @@ from reactive_anim.core.window import (
     window_costs,
     yaw_rotate,
 )
+from reactive_anim.core.transition.casting import Casting
 from tools.devkit.library_clips import mocap_class, perturbed, write_toml
 from tools.devkit.mocap import MOCAP, REPO, mocap_files
 from tools.devkit.poses import ground_axes

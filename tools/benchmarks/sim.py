@@ -16,12 +16,12 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from reactive_anim.core import bvh
-from reactive_anim.core.balance import RootAssist
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.ragdoll import TIMESTEP, build_ragdoll
+from reactive_anim.core.model import bvh
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.physics.balance import RootAssist
+from reactive_anim.core.physics.ragdoll import TIMESTEP, build_ragdoll
+from reactive_anim.core.physics.simulate import SimState, Workspace, simulate_impact, state_from_mocap, track
 from reactive_anim.core.react import ReactionSettings
-from reactive_anim.core.simulate import SimState, Workspace, simulate_impact, state_from_mocap, track
 from tools.devkit.mocap import MOCAP, REPO, mocap_files
 from tools.devkit.tracking import kept_up_seconds
 

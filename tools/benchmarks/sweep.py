@@ -20,14 +20,14 @@ from collections import Counter
 
 import numpy as np
 
-from reactive_anim.core import bvh
-from reactive_anim.core.casting import Casting
-from reactive_anim.core.classifier import load_classifier
-from reactive_anim.core.errors import ImpactError, ReactiveAnimError
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.library import load_library
+from reactive_anim.core.classify.classifier import load_classifier
+from reactive_anim.core.model import bvh
+from reactive_anim.core.model.errors import ImpactError, ReactiveAnimError
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.model.skeleton import Motion
 from reactive_anim.core.react import Baked, bake_reactions, character_ragdoll
-from reactive_anim.core.skeleton import Motion
+from reactive_anim.core.search.library import load_library
+from reactive_anim.core.transition.casting import Casting
 from tools.devkit.mocap import REPO, mocap_files
 
 from .common import report, skipped

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from reactive_anim.core.classifier import INPUT_NAME, METADATA_KEYS, OUTPUT_NAME
+from reactive_anim.core.classify.classifier import INPUT_NAME, METADATA_KEYS, OUTPUT_NAME
 
 from .nets import Net
 

@@ -17,14 +17,14 @@ from pathlib import Path
 
 import numpy as np
 
-from reactive_anim.core import bvh
-from reactive_anim.core.classes import CLASS_SLUGS, CLASSES, mirror_image
-from reactive_anim.core.classifier import load_classifier
-from reactive_anim.core.errors import ReactiveAnimError
-from reactive_anim.core.features import FEATURE_SETS, FeatureReader, mirrored, select
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.ragdoll import build_ragdoll
-from reactive_anim.core.simulate import simulate_impact
+from reactive_anim.core.classify.classifier import load_classifier
+from reactive_anim.core.classify.features import FEATURE_SETS, FeatureReader, mirrored, select
+from reactive_anim.core.model import bvh
+from reactive_anim.core.model.classes import CLASS_SLUGS, CLASSES, mirror_image
+from reactive_anim.core.model.errors import ReactiveAnimError
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.physics.ragdoll import build_ragdoll
+from reactive_anim.core.physics.simulate import simulate_impact
 
 from . import nets
 from .export import OPSET, write_onnx

@@ -24,15 +24,15 @@ from pathlib import Path
 
 import numpy as np
 
-from reactive_anim.core import bvh
-from reactive_anim.core.classes import CLASS_SLUGS
-from reactive_anim.core.errors import ReactiveAnimError
-from reactive_anim.core.features import EXTENDED_FEATURES, FeatureReader, reaction_features
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.outcome import simulate_outcome
-from reactive_anim.core.ragdoll import build_ragdoll
-from reactive_anim.core.simulate import REACTION_WINDOW, Workspace
-from reactive_anim.core.skeleton import Motion
+from reactive_anim.core.classify.features import EXTENDED_FEATURES, FeatureReader, reaction_features
+from reactive_anim.core.classify.outcome import simulate_outcome
+from reactive_anim.core.model import bvh
+from reactive_anim.core.model.classes import CLASS_SLUGS
+from reactive_anim.core.model.errors import ReactiveAnimError
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.model.skeleton import Motion
+from reactive_anim.core.physics.ragdoll import build_ragdoll
+from reactive_anim.core.physics.simulate import REACTION_WINDOW, Workspace
 
 HIT_ROLES = ("head", "chest", "pelvis", "shoulder_l", "shoulder_r", "hip_l", "hip_r")  # upper arms, thighs
 MIN_STRENGTH, MAX_STRENGTH = 10.0, 400.0  # N·s (issue 12)

@@ -13,14 +13,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from reactive_anim.core import bvh
-from reactive_anim.core.classes import CLASS_SLUGS
-from reactive_anim.core.classifier import Classifier
-from reactive_anim.core.features import FeatureReader, ReactionState, reaction_features
-from reactive_anim.core.outcome import judge
-from reactive_anim.core.ragdoll import build_ragdoll
-from reactive_anim.core.simulate import REACTION_WINDOW
-from reactive_anim.core.skeleton import Motion
+from reactive_anim.core.classify.classifier import Classifier
+from reactive_anim.core.classify.features import FeatureReader, ReactionState, reaction_features
+from reactive_anim.core.classify.outcome import judge
+from reactive_anim.core.model import bvh
+from reactive_anim.core.model.classes import CLASS_SLUGS
+from reactive_anim.core.model.skeleton import Motion
+from reactive_anim.core.physics.ragdoll import build_ragdoll
+from reactive_anim.core.physics.simulate import REACTION_WINDOW
 from tools.devkit.mocap import MOCAP
 
 from .pushes import plan_pushes, simulate_pushes

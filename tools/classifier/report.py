@@ -9,10 +9,10 @@ from pathlib import Path
 
 import numpy as np
 
-from reactive_anim.core import outcome
-from reactive_anim.core.classes import CLASS_SLUGS
-from reactive_anim.core.features import EXTENDED_FEATURES, PAPER_FEATURES, select
-from reactive_anim.core.simulate import REACTION_WINDOW
+from reactive_anim.core.classify import outcome
+from reactive_anim.core.classify.features import EXTENDED_FEATURES, PAPER_FEATURES, select
+from reactive_anim.core.model.classes import CLASS_SLUGS
+from reactive_anim.core.physics.simulate import REACTION_WINDOW
 
 from . import pushes
 from .export import OPSET
@@ -65,7 +65,7 @@ def _header(result: Result) -> str:
             f"Written by `python -m tools.train_classifier` with the model `{config.out.name}` beside it. "
             "Retrain with the same command (add `--quick` for a short run on your own clips, see docs/method.md). "
             "Paper section 2.3; the labels come from the physical outcome of each push "
-            "(`reactive_anim/core/outcome.py`), never from the library search.",
+            "(`reactive_anim/core/classify/outcome.py`), never from the library search.",
             "",
             f"**Shipped: {shipped.name}**, hidden layers {shipped.hidden}: held-out test accuracy "
             f"**{_pct(shipped.test.accuracy)}**, direction group (forward / backward / side / balance) "
@@ -119,7 +119,8 @@ def _data(result: Result) -> str:
             "mirrored`, labelled with the mirror image of their class: a side step's other side, "
             "`classes.mirror_image`); validation and test are the simulated pushes only.",
             f"- Features: the paper's nine ({', '.join(PAPER_FEATURES)}) and the extended set adding "
-            f"{', '.join(EXTENDED_FEATURES[len(PAPER_FEATURES) :])} (definitions: `reactive_anim/core/features.py`).",
+            f"{', '.join(EXTENDED_FEATURES[len(PAPER_FEATURES) :])} "
+            "(definitions: `reactive_anim/core/classify/features.py`).",
         ]
     )
 
@@ -184,7 +185,7 @@ def _rule() -> str:
             "own; the departure beyond what the centre of pressure can still reach in the base of support is "
             "captured in N steps (N-step capturability, Koolen et al. 2012) or not at all (a fall). Direction from the "
             "departure relative to the facing at B; fall subtype from the speed along it. Full statement: the "
-            "docstring of `reactive_anim/core/outcome.py`.",
+            "docstring of `reactive_anim/core/classify/outcome.py`.",
             "",
             _table(["constant", "value", "why"], constants),
         ]

@@ -31,8 +31,9 @@ import bpy  # after BLENDER_USER_RESOURCES: Blender reads it when the module loa
 import numpy as np
 
 import reactive_anim
-from reactive_anim.blender import bake, impacts, resources
-from reactive_anim.core.errors import ReactiveAnimError
+from reactive_anim.blender.bake import bake, resources
+from reactive_anim.blender.impacts import impacts
+from reactive_anim.core.model.errors import ReactiveAnimError
 from reactive_anim.core.react import ReactionSettings
 
 from . import markers, render

@@ -33,7 +33,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Vector
 
-from reactive_anim.blender import impacts
+from reactive_anim.blender.impacts import impacts
 
 from . import scene as demo_scene
 
@@ -49,7 +49,7 @@ VIEW_QUARTER = math.radians(30)  # the filmstrip's view of a push: this far from
 class DemoImpact:
     """One hit of the demo, in the character's own terms.
 
-    seconds: when, after the action's first frame. role: the joint role hit (core/roles.py), so the
+    seconds: when, after the action's first frame. role: the joint role hit (core/model/roles.py), so the
     bone is this armature's. push: "from_behind", "from_front", "from_right" or "from_left".
     strength: N·s. expected: the reaction class the demo expects (forced while no model ships).
     """

@@ -1,11 +1,11 @@
 """The demo's scene: the sample walk on an armature, a mannequin that renders, a floor, a camera, a sun.
 
 Built in a fresh, empty Blender (factory settings), so the demo depends on nobody's startup file.
-The character comes in through the project's own importer (blender/bvh_import.py), as an animator's
+The character comes in through the project's own importer (blender/character/bvh_import.py), as an animator's
 mocap would. The mannequin is one mesh of capsules, one per link of the skeleton, deformed by an
 Armature modifier through vertex groups (each capsule wholly on the bone that rotates it), so it
 follows whatever action the armature plays, the reacted one included. Its proportions come from
-the skeleton's joint roles (core/roles.py), not from bone names, and its left limbs are tinted
+the skeleton's joint roles (core/model/roles.py), not from bone names, and its left limbs are tinted
 slightly blue, its right ones slightly warm, so the pose reads at a glance. The floor is a 1 m
 checker, so a sliding foot shows against it. The camera rides on an empty that follows the root
 bone over the ground, three-quarter side-on to the direction of the walk; the sun is there for
@@ -23,8 +23,8 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Vector
 
-from reactive_anim.blender import action_io, bvh_import
-from reactive_anim.core.roles import assign_roles, read_joint_name
+from reactive_anim.blender.character import action_io, bvh_import
+from reactive_anim.core.model.roles import assign_roles, read_joint_name
 
 CHARACTER_NAME = "Walker"
 MANNEQUIN_NAME = "Mannequin"
@@ -63,7 +63,7 @@ class Part:
     stop: float = 1.0
 
 
-# A part per joint role (core/roles.py); links from the trunk to a limb get their own parts.
+# A part per joint role (core/model/roles.py); links from the trunk to a limb get their own parts.
 PARTS = {
     "pelvis": Part(0.15, 0.11, 0.08, 0.0, 1.0),
     "waist": Part(0.13, 0.095, 0.06),
@@ -121,7 +121,7 @@ def fit_frame_range(scene: bpy.types.Scene, frame_range: Iterable[float]) -> Non
 
 
 def character_roles(armature: bpy.types.Object) -> dict[str, str]:
-    """Joint role -> bone name for the armature (core/roles.py)."""
+    """Joint role -> bone name for the armature (core/model/roles.py)."""
     return assign_roles(action_io.armature_skeleton(armature))
 
 

@@ -32,10 +32,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from reactive_anim.core import quat
-from reactive_anim.core.classes import reaction_class
-from reactive_anim.core.retarget import foot_points
-from reactive_anim.core.skeleton import Motion, root_child
+from reactive_anim.core.model import quat
+from reactive_anim.core.model.classes import reaction_class
+from reactive_anim.core.model.skeleton import Motion, root_child
+from reactive_anim.core.transition.retarget import foot_points
 
 STRIDE = 1.0 / 30.0  # s: the stride of speeds and accelerations (mocap noise is not acceleration)
 CONTACT = 0.02  # m over the floor: a foot point this low stands on it

@@ -11,7 +11,7 @@ from pathlib import Path
 import bpy
 from bpy_extras.io_utils import axis_conversion
 
-from reactive_anim.core import bvh
+from reactive_anim.core.model import bvh
 
 
 def import_with_blender(context: bpy.types.Context, path: Path, unit: str = "auto", up: str = "Y") -> bpy.types.Object:

@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from reactive_anim.core import bvh, quat
-from reactive_anim.core.skeleton import Motion
-from reactive_anim.core.window import FrameFeatures, Query
+from reactive_anim.core.model import bvh, quat
+from reactive_anim.core.model.skeleton import Motion
+from reactive_anim.core.search.window import FrameFeatures, Query
 from tools.devkit.mocap import REPO
 
 WALK = REPO / "sample_clips" / "walk.bvh"

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from reactive_anim.core.retarget import joint_path
-from reactive_anim.core.roles import assign_roles
-from reactive_anim.core.skeleton import Motion, Skeleton
+from reactive_anim.core.model.roles import assign_roles
+from reactive_anim.core.model.skeleton import Motion, Skeleton
+from reactive_anim.core.transition.retarget import joint_path
 
 UP = np.array([0.0, 0.0, 1.0])
 
@@ -24,12 +24,12 @@ def ground_axes(motion: Motion, frame: float, roles: dict[str, str] | None = Non
 
 
 def leg_joints(skeleton: Skeleton) -> list[int]:
-    """Every joint from the hips down (what the feet hold, core/footing.py, may turn)."""
+    """Every joint from the hips down (what the feet hold, core/transition/footing.py, may turn)."""
     return _below(skeleton, "hip")
 
 
 def limb_joints(skeleton: Skeleton) -> list[int]:
-    """Every joint from the hips or the shoulders down (what core/footing.py may turn: the feet held,
+    """Every joint from the hips or the shoulders down (what core/transition/footing.py may turn: the feet held,
     and legs and arms brought out of the floor)."""
     return sorted(_below(skeleton, "hip") + _below(skeleton, "shoulder"))
 

@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from reactive_anim.core import quat
-from reactive_anim.core.search_index import window_limits
-from reactive_anim.core.window import TABLE2_POSITION_WEIGHTS, TABLE2_ROTATION_WEIGHTS, Query, joint_weights
+from reactive_anim.core.model import quat
+from reactive_anim.core.search.search_index import window_limits
+from reactive_anim.core.search.window import TABLE2_POSITION_WEIGHTS, TABLE2_ROTATION_WEIGHTS, Query, joint_weights
 
 
 def _turn(points: np.ndarray, yaw: float) -> np.ndarray:

@@ -7,8 +7,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from reactive_anim.core import bvh, quat
-from reactive_anim.core.skeleton import Skeleton
+from reactive_anim.core.model import bvh, quat
+from reactive_anim.core.model.skeleton import Skeleton
 from tools.devkit.mocap import REPO
 
 WALK = bvh.read_bvh(REPO / "sample_clips" / "walk.bvh")

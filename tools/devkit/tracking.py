@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from reactive_anim.core.ragdoll import Ragdoll
-from reactive_anim.core.simulate import SimResult
-from reactive_anim.core.skeleton import Motion
+from reactive_anim.core.model.skeleton import Motion
+from reactive_anim.core.physics.ragdoll import Ragdoll
+from reactive_anim.core.physics.simulate import SimResult
 
 HEIGHT_BOUND = 0.10  # m
 ERROR_BOUND = 0.05  # m

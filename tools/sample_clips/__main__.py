@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from reactive_anim.core import bvh
+from reactive_anim.core.model import bvh
 
 from .catalogue import write_clips
 from .sheets import write_contact_sheets

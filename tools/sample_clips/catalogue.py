@@ -9,8 +9,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from reactive_anim.core import bvh
-from reactive_anim.core.skeleton import Motion
+from reactive_anim.core.model import bvh
+from reactive_anim.core.model.skeleton import Motion
 
 from .falls import FALLS, NEXT, fall_clip
 from .gaits import run_clip, walk_clip
@@ -55,7 +55,7 @@ def library_toml() -> str:
         # The header of the committed sample_clips/library.toml, old tool path and all: change the
         # two together (the test wants this file byte for byte).
         "# The reaction library over the clips in this folder, written by python -m tools.sample_clips.",
-        "# One [[clip]] per reaction clip: file, class (a slug of reactive_anim/core/classes.py), optional",
+        "# One [[clip]] per reaction clip: file, class (a slug of reactive_anim/core/model/classes.py), optional",
         "# frames = [start, end] and optional next = the clip that follows it (a get-up after a fall).",
         "# [[chain]] tables list clips reached only through `next` (the get-ups); they are no class.",
         "",

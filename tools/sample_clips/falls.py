@@ -1,6 +1,6 @@
 """Falls, made by physics: the ragdoll pushed, then PD servos toward protective key poses.
 
-The ragdoll (reactive_anim.core.ragdoll, anatomical profile, built on the sample skeleton with the
+The ragdoll (reactive_anim.core.physics.ragdoll, anatomical profile, built on the sample skeleton with the
 idle stand as its reference) starts from a frame of the idle stand or of the walk; walk starts use
 frames where both feet's toes are flat (24, 56, 88, ...: the ragdoll has no toe joint, so toes bent
 at the push stay bent through the fall, and from frame 40 a toe tip went 1.7-4 cm into the floor);
@@ -33,11 +33,11 @@ from functools import lru_cache
 
 import numpy as np
 
-from reactive_anim.core import quat
-from reactive_anim.core.impact import Impact
-from reactive_anim.core.ragdoll import ANATOMICAL_LIMITS, Ragdoll, build_ragdoll
-from reactive_anim.core.simulate import ServoGains, Workspace, simulate_impact, track
-from reactive_anim.core.skeleton import Motion
+from reactive_anim.core.model import quat
+from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.model.skeleton import Motion
+from reactive_anim.core.physics.ragdoll import ANATOMICAL_LIMITS, Ragdoll, build_ragdoll
+from reactive_anim.core.physics.simulate import ServoGains, Workspace, simulate_impact, track
 
 from .curves import key_timeline
 from .gaits import walk_clip

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from reactive_anim.core import quat
-from reactive_anim.core.skeleton import Motion, Skeleton, forward_kinematics
+from reactive_anim.core.model import quat
+from reactive_anim.core.model.skeleton import Motion, Skeleton, forward_kinematics
 
 from .curves import hermite, hermite_via, wave
 from .ik import two_bone_ik

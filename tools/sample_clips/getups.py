@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from reactive_anim.core import quat
-from reactive_anim.core.skeleton import Motion, forward_kinematics
+from reactive_anim.core.model import quat
+from reactive_anim.core.model.skeleton import Motion, forward_kinematics
 
 from .curves import key_timeline, lift_bump
 from .ik import arm_ik, leg_ik

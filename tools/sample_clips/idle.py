@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from reactive_anim.core import quat
-from reactive_anim.core.skeleton import Motion
+from reactive_anim.core.model import quat
+from reactive_anim.core.model.skeleton import Motion
 
 from .ik import leg_ik
 from .poses import PARAMS, STAND, pose_vector, posed, standing_ankles

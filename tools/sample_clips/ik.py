@@ -2,15 +2,15 @@
 skeleton, so a planted hand or foot stays exactly where it was planned.
 
 The functions that pose a limb work in place on a clip's local rotations (T, J, 4), given its root
-positions (T, 3): forward kinematics (reactive_anim.core.skeleton) finds where the limb starts.
+positions (T, 3): forward kinematics (reactive_anim.core.model.skeleton) finds where the limb starts.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from reactive_anim.core import quat
-from reactive_anim.core.skeleton import Skeleton, forward_kinematics
+from reactive_anim.core.model import quat
+from reactive_anim.core.model.skeleton import Skeleton, forward_kinematics
 
 from .skeleton import FORWARD, SIDES, X_AXIS
 

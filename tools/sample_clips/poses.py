@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from reactive_anim.core import quat
-from reactive_anim.core.skeleton import Skeleton
+from reactive_anim.core.model import quat
+from reactive_anim.core.model.skeleton import Skeleton
 
 from .skeleton import ANKLE_HEIGHT, FORWARD, HEIGHT, PELVIS_Z, SIDES, about_x, about_y, about_z
 

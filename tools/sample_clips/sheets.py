@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from reactive_anim.core.skeleton import Motion
+from reactive_anim.core.model.skeleton import Motion
 
 from .catalogue import CLIPS, LOCOMOTION, REACTIONS, reaction_class
 from .getups import GETUPS

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from reactive_anim.core import quat
-from reactive_anim.core.skeleton import Motion, Skeleton
+from reactive_anim.core.model import quat
+from reactive_anim.core.model.skeleton import Motion, Skeleton
 
 HEIGHT = 1.75
 FPS = 60

@@ -22,8 +22,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from reactive_anim.core import quat
-from reactive_anim.core.skeleton import Motion, Skeleton, forward_kinematics
+from reactive_anim.core.model import quat
+from reactive_anim.core.model.skeleton import Motion, Skeleton, forward_kinematics
 
 from .balance import Push, StepPlan, balance_plan
 from .curves import minimum_jerk

@@ -1,0 +1,1 @@
+"""What the animator sees: the sidebar panel and menu, the viewport overlay, the scene settings."""

@@ -1,0 +1,1 @@
+"""Physics (BC and CD): the MuJoCo ragdoll, forward dynamics, PD tracking and the balance assist."""

@@ -1,0 +1,254 @@
+"""Planted feet stay planted across a reaction's seams, and feet and hands stay out of the floor.
+
+A reaction is stitched from sources whose feet stand in different places: the ragdoll's simulated
+steps, the clip faded in over C..F (blend.py), the original motion faded back in on resume. Where
+two sources cross-fade while a foot is on the floor, the foot slides from one footprint to the
+other. Measured on nine pushes of the sample walk (contact point of a touching foot, summed over
+C..F): 237 cm, of which the simulation itself slid 87 cm; the fade is the rest.
+
+Where the sources cross-fade (`fades`: C..F, a chained get-up fading in, the resume), the part of
+a standing foot's motion along the floor is taken back by an offset, which the leg's two-bone IK
+adds to the ankle (the foot keeps its orientation). Outside the fades the motion's own steps play
+as they are (a clip's or a get-up's drawn-up heel is meant to slide) and the offset is only carried:
+kept while the foot stands, let go in the air (CATCH_UP_RATE), so the next footprint lands
+where the motion puts it. The hold runs on until every offset is let go (a foot that never lifts
+keeps it to the end of the motion). A foot stands by ramps, not thresholds (see _sliding), so
+a millimetre's difference in the motion moves the result by little. Where a leg cannot reach,
+the offset is capped (MAX_OFFSET) and the foot slides the rest. From the impact to the end of
+the reaction, a foot whose lowest point is under the character's floor (the lowest its feet get
+in its own motion) is also lifted onto it: the ragdoll's soles and the skeleton's toes do not
+quite agree, and toes went up to 4 cm under the floor in transitions. A hand under the floor
+there is lifted onto it by the arm's IK, as a foot is: a fade between two poses whose hands both
+clear the floor can pass one under it, and a clip cast onto longer arms puts the hands a few cm
+under (docs/measurements.md). Knees a fade puts under the floor cannot be lifted so: with the
+hip and the ankle where they are, a kneeling knee at the bottom of its circle about them can only
+move sideways, by far more than its depth. What is still under the floor after the feet and hands
+(a knee, a head through a fade of a roll, a kneeling clip cast onto longer shins) lifts the whole
+body instead (lift_onto_floor), eased in and out so the lift adds no pop.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..model.skeleton import Motion, Skeleton, root_child
+from .retarget import foot_points, joint_path, leg_length, local_rotations, lowest_foot_point, two_bone_ik
+
+CONTACT_HEIGHT = 0.03  # m over the floor: a foot point lower than this stands on it, fully from ...
+CONTACT_BAND = 0.02  # ... this much lower (toe clearance in a walk's swing is about 1.5 cm)
+LOWEST_SCALE = 0.003  # m: a foot point this much higher than its lowest counts 1/e as much for the slide
+SKIM_SPEED = 3.5  # m/s: a point faster than this does not stand, fully below ...
+SPEED_BAND = 1.0  # ... this much slower (a swing foot moves at 3-5 m/s; a blend slides it at 0.5-2.5)
+CATCH_UP_RATE = 7.0  # 1/s: in the air an offset shrinks by this fraction a second, smoothly (143 ms time constant) ...
+CATCH_UP_FINISH = 0.05  # m/s: ... and by this much more, so it ends (the last step is under a millimetre)
+SOFT_REACH = 0.95  # of a leg's length: a held foot asking more of it reaches less, smoothly (_eased_reach)
+# leg lengths a foot is held away from where the motion puts it; beyond, it slides. A fade from a
+# walking stride into a clip's standing start or a side step's wide stance moves a foot that far;
+# a held foot costs some joint acceleration when it is let go (docs/measurements.md)
+MAX_OFFSET = 0.4
+SETTLE = 1.0  # s after the reaction first looked at for the offsets to be let go (a walker's feet lift in it)
+SIDES = ("l", "r")
+LIFT_EASE = 0.15  # s over which the body is lifted onto the floor before and after the deepest frame
+LIFT_MIN = 0.002  # m: less under the floor than this is left as it is
+
+
+def hold_feet(
+    motion: Motion, roles: dict[str, str], frames: tuple[int, int], fades: list[tuple[int, int]], floor: float
+) -> Motion:
+    """`motion` with its feet held (see the module docstring) from frame `first` on, frames =
+    (first, last): slides taken back within `fades` (frame ranges [a, b)) and carried until let go,
+    looking at least to `last` plus SETTLE; feet and hands lifted out of the floor over
+    first..last - 1. Frames before `first` and after the hold are untouched, bit for bit. roles:
+    role -> joint name (hip_l, knee_l, ankle_l, shoulder_l, elbow_l, wrist_l, ... pelvis, chest);
+    floor: the height of the character's lowest foot point in its own motion (casting.Casting.sole)."""
+    first, last = max(frames[0], 1), min(frames[1], motion.num_frames)
+    if last - first < 2:
+        return motion
+    joint = {role: motion.skeleton.index(name) for role, name in roles.items()}
+    end = min(motion.num_frames, last + round(SETTLE * motion.fps))
+    while True:
+        held = _hold(motion, roles, joint, (first, last, end), fades, floor)
+        if held is None or end == motion.num_frames or not held[1]:
+            break
+        end = min(motion.num_frames, end + (end - first))  # a foot still held: look further
+    if held is None:
+        return motion
+    glob, _, moved = held
+    return _with_limbs(motion, glob, moved, first)
+
+
+def _hold(
+    motion: Motion,
+    roles: dict[str, str],
+    joint: dict[str, int],
+    frames: tuple[int, int, int],
+    fades: list[tuple[int, int]],
+    floor: float,
+) -> tuple[np.ndarray, bool, list[tuple[list[int], np.ndarray]]] | None:
+    """The global rotations over first - 1..end - 1 with the feet held and feet and hands out of the
+    floor, whether a foot is still held at end - 1, and per limb turned its joints and the rows
+    it turned; None where nothing moves."""
+    first, last, end = frames
+    span = motion.slice(first - 1, end)  # one frame before: where the first frame's foot came from
+    skeleton = span.skeleton
+    pos, glob = span.global_transforms()
+    left = pos[:, joint["hip_l"]] - pos[:, joint["hip_r"]]
+    forward = np.cross(left, pos[:, joint["chest"]] - pos[:, joint["pelvis"]])
+    points = {side: foot_points(skeleton, joint[f"ankle_{side}"], pos, glob) for side in SIDES}
+    fading = np.zeros(len(pos) - 1, dtype=bool)  # per step into frame first + i
+    for a, b in fades:
+        fading[max(a - first, 0) : max(b - first, 0)] = True
+    leg = leg_length(skeleton, roles)
+    moved: list[tuple[list[int], np.ndarray]] = []
+    still_held = False
+    reaction = np.zeros(len(pos), dtype=bool)  # the frames lifted out of the floor: first..last - 1
+    reaction[1 : last - first + 1] = True  # (after the reaction the motion is its own)
+    for side in SIDES:
+        ankle = joint[f"ankle_{side}"]
+        down, slide = _sliding(points[side], floor, motion.fps)
+        offset = _offsets(down, np.where(fading[:, None], slide, 0.0), motion.fps, MAX_OFFSET * leg)
+        lift = np.where(reaction, np.maximum(floor - points[side][..., 2].min(axis=1), 0.0), 0.0)
+        moves = (np.abs(offset).max(axis=1) > 1e-6) | (lift > 1e-6)
+        still_held = still_held or bool(np.abs(offset[-1]).max() > 1e-6)
+        if not moves.any():
+            continue
+        goal = pos[:, ankle].copy()
+        goal[:, :2] += offset
+        goal[:, 2] += lift
+        chain = (joint[f"hip_{side}"], joint[f"knee_{side}"], ankle)
+        goal = _eased_reach(goal, *(pos[:, j] for j in chain))
+        two_bone_ik(skeleton, pos, glob, chain, goal, moves.astype(float), left, forward)
+        moved.append((joint_path(skeleton, chain[0], ankle), moves))
+    moved += _hands_out_of_the_floor(skeleton, pos, glob, joint, (left, forward), reaction, floor)
+    return (glob, still_held, moved) if moved else None
+
+
+def _hands_out_of_the_floor(
+    skeleton: Skeleton,
+    pos: np.ndarray,
+    glob: np.ndarray,
+    joint: dict[str, int],
+    axes: tuple[np.ndarray, np.ndarray],
+    rows: np.ndarray,
+    floor: float,
+) -> list[tuple[list[int], np.ndarray]]:
+    """Per arm whose hand (the wrist, the joints below it and their end sites) a fade or a cast clip
+    put through the floor on `rows`, its joints and the rows turned (in place on pos and glob): the hand lifted
+    straight up onto the floor by the arm's two-bone IK, as a foot is (an elbow bends the other way
+    from a knee: the body's axes turned round), keeping its turn in the world. A hand the motion
+    already has under the floor at the hit (row 0) keeps that depth, so nothing jumps there. axes:
+    the body's left and forward per frame."""
+    left, forward = axes
+    moved = []
+    for side in SIDES:
+        chain = (joint[f"shoulder_{side}"], joint[f"elbow_{side}"], joint[f"wrist_{side}"])
+        wrist = chain[2]
+        lowest = lowest_foot_point(skeleton, wrist, pos, glob)  # a hand's points as a foot's: fingers, tips
+        need = np.where(rows, np.maximum(min(floor, float(lowest[0])) - lowest, 0.0), 0.0)
+        turned = need > 1e-6
+        if turned.any():
+            goal = pos[:, wrist].copy()
+            goal[:, 2] += need
+            goal = _eased_reach(goal, *(pos[:, j] for j in chain))
+            two_bone_ik(skeleton, pos, glob, chain, goal, turned.astype(float), -left, -forward)
+            moved.append((joint_path(skeleton, chain[0], wrist), turned))
+    return moved
+
+
+def _eased_reach(goal: np.ndarray, hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray) -> np.ndarray:
+    """The goals (T, 3) pulled in where they would straighten the limb past SOFT_REACH of its length
+    (or past the motion's own stretch, where that is more): the last few per cent of a knee's (an
+    elbow's) extension turn it fast for a small move of the foot, which shows as a kick of the knee;
+    eased, the foot falls a little short and slides that much instead. Continuous: a goal at the
+    motion's own ankle is left where it is."""
+    length = np.linalg.norm(knee - hip, axis=-1) + np.linalg.norm(ankle - knee, axis=-1)
+    start = np.maximum(SOFT_REACH * length, np.linalg.norm(ankle - hip, axis=-1))
+    room = np.maximum(length - start, 1e-6)
+    distance = np.linalg.norm(goal - hip, axis=-1)
+    beyond = np.maximum(distance - start, 0.0)  # zero where the goal is within reach: exp stays finite
+    eased = np.where(distance > start, start + room * (1.0 - np.exp(-beyond / room)), distance)
+    return hip + (goal - hip) * (eased / np.maximum(distance, 1e-9))[:, None]
+
+
+def _with_limbs(motion: Motion, glob: np.ndarray, limbs: list[tuple[list[int], np.ndarray]], first: int) -> Motion:
+    """`motion` with each limb's local rotations taken from `glob` (rows from frame first - 1) on
+    the rows it was turned (the others stay the input's, bit for bit), each on the same side of
+    the quaternion sphere as the rotation it replaces."""
+    local = local_rotations(motion.skeleton, glob)
+    local_rot = motion.local_rot.copy()
+    for joints, rows in limbs:
+        turned = np.flatnonzero(rows)
+        new, old = local[turned][:, joints], local_rot[first - 1 + turned][:, joints]
+        local_rot[(first - 1 + turned)[:, None], joints] = np.where(np.sum(new * old, -1, keepdims=True) < 0, -new, new)
+    return Motion(skeleton=motion.skeleton, fps=motion.fps, root_pos=motion.root_pos, local_rot=local_rot,
+                  local_pos=motion.local_pos)  # fmt: skip
+
+
+def _sliding(points: np.ndarray, floor: float, fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """From a foot's points (T, P, 3), per frame from the second: how much it is on the floor (0..1,
+    by height: CONTACT_HEIGHT) and the slide to take back (T - 1, 2), counted as much as the foot
+    stands: on the floor and slow (a swing foot skimming the floor is fast). Ramps rather than
+    thresholds, so a millimetre more or less changes the result by little; a foot rolling from heel
+    to toe stands on the point that stays."""
+    height = points[..., 2]
+    firm = np.clip((floor + CONTACT_HEIGHT - height) / CONTACT_BAND, 0.0, 1.0)  # (T, P)
+    step = np.diff(points[..., :2], axis=0)  # (T - 1, P, 2)
+    slow = np.clip((SKIM_SPEED - np.linalg.norm(step, axis=-1) * fps) / SPEED_BAND, 0.0, 1.0)
+    weight = np.minimum(firm[1:], firm[:-1]) * slow
+    # The slide is the lowest point's: a point a few millimetres higher (the ball as the heel of a
+    # toe-off rises) counts for little, so a roll is not taken for a slide.
+    low = np.exp(-(height[1:] - height[1:].min(axis=1, keepdims=True)) / LOWEST_SCALE)
+    share = weight * low
+    slide = (share[..., None] * step).sum(axis=1) / np.maximum(share.sum(axis=1), 1e-12)[:, None]
+    return firm[1:].max(axis=1), weight.max(axis=1)[:, None] * slide
+
+
+def _offsets(down: np.ndarray, slide: np.ndarray, fps: float, most: float) -> np.ndarray:
+    """(T, 2) the ankle's ground offset per frame (row 0, the frame before the range, is zero): the
+    slide taken back, at most `most` (m; beyond, the foot slides: MAX_OFFSET); let go in the air
+    (1 - down) at CATCH_UP_RATE, fast while it is large and slowing as it shrinks, so the foot
+    eases onto the motion's path instead of stopping short on it."""
+    offset = np.zeros((len(slide) + 1, 2))
+    for t in range(1, len(offset)):
+        held = offset[t - 1] - slide[t - 1]
+        size = float(np.linalg.norm(held))
+        if size > 0.0:
+            air = 1.0 - down[t - 1]
+            let_go = size * np.exp(-air * CATCH_UP_RATE / fps) - air * CATCH_UP_FINISH / fps
+            held *= min(most, max(0.0, let_go)) / size
+        offset[t] = held
+    return offset
+
+
+def lift_onto_floor(motion: Motion, frames: tuple[int, int], floor: float) -> Motion:
+    """`motion` with the root raised wherever a joint or end site is under `floor` on frames
+    [first, last), by at least that depth: the depth's running maximum over LIFT_EASE either side,
+    smoothed, so the lift eases in and out (a lift of d over LIFT_EASE accelerates the body by
+    about d / LIFT_EASE^2: 4 m/s^2 for 10 cm) and a knee on the floor stays on it rather than
+    sinking. The lift may run on up to LIFT_EASE past `last` (easing out), never before `first`;
+    a ground root bone (root_child) is not the body and does not count."""
+    first, last = max(frames[0], 0), min(frames[1], motion.num_frames)
+    if last <= first:
+        return motion
+    depth = np.zeros(motion.num_frames)
+    depth[first:last] = np.maximum(floor - _lowest_points(motion.slice(first, last)), 0.0)
+    if depth.max() < LIFT_MIN:
+        return motion
+    reach = max(2, round(LIFT_EASE * motion.fps))
+    held = np.lib.stride_tricks.sliding_window_view(np.pad(depth, reach, mode="edge"), 2 * reach + 1).max(axis=1)
+    lift = _box(_box(held, reach // 2), reach // 2)  # two boxes within the held plateau: never under the depth
+    lift[:first] = 0.0
+    root = motion.root_pos.copy()
+    root[:, 2] += lift
+    return Motion(motion.skeleton, motion.fps, root, motion.local_rot, motion.local_pos)
+
+
+def _box(values: np.ndarray, half: int) -> np.ndarray:
+    """The running mean over 2 half + 1 frames, the ends held."""
+    return np.convolve(np.pad(values, half, mode="edge"), np.ones(2 * half + 1) / (2 * half + 1), mode="valid")
+
+
+def _lowest_points(motion: Motion) -> np.ndarray:
+    """(T,) the height of the lowest joint or end site per frame, a ground root bone left out."""
+    pos, rot = motion.global_transforms()
+    return lowest_foot_point(motion.skeleton, root_child(motion.skeleton) or 0, pos, rot)
