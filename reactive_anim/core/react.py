@@ -57,7 +57,8 @@ from .model.impact import Impact
 from .model.skeleton import Motion, hold_root, static_root
 from .physics.balance import RootAssist
 from .physics.ragdoll import Ragdoll, build_ragdoll
-from .physics.simulate import SimResult, Workspace, simulate_impact, track
+from .physics.simulate import SimResult, simulate_impact, track
+from .physics.workspace import Workspace
 from .search.library import Library
 from .search.search import Match, search, search_with_fallback
 from .search.window import (

@@ -13,8 +13,10 @@ import pytest
 from reactive_anim.core.model import bvh, quat
 from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.physics.balance import RootAssist
+from reactive_anim.core.physics.joints import mocap_qpos
 from reactive_anim.core.physics.ragdoll import build_ragdoll
-from reactive_anim.core.physics.simulate import SimResult, Workspace, mocap_qpos, simulate_impact, track
+from reactive_anim.core.physics.simulate import SimResult, simulate_impact, track
+from reactive_anim.core.physics.workspace import Workspace
 from tests.support.mocap import REPO
 from tools.devkit.poses import ground_axes
 from tools.devkit.tracking import kept_up_seconds

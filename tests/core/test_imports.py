@@ -2,7 +2,8 @@
 package imports neither tools/ nor tests/, tools/ never imports tests/ (what both need is in
 tools/devkit); and the core never imports Blender. Read from the source with ast (every import
 statement, including those inside functions, so a lazy import cannot hide a cycle), not by
-importing."""
+importing. And the physics engine has one seam in the core: only core/physics imports mujoco (the farm
+reads its version for output fingerprints, nothing more)."""
 
 from __future__ import annotations
 
@@ -127,3 +128,21 @@ def test_the_core_never_imports_blender(path: Path) -> None:
         if isinstance(node, ast.ImportFrom):
             names = [node.module or ""]
         assert not any(n == "bpy" or n.startswith(("bpy.", "mathutils", "bmesh")) for n in names), path
+
+
+def _third_party(path: Path) -> set[str]:
+    """The top-level names of the absolute imports of a file (relative ones are the project's)."""
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            found |= {alias.name.split(".")[0] for alias in node.names}
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            found.add(node.module.split(".")[0])
+    return found
+
+
+def test_only_the_physics_package_imports_the_engine() -> None:
+    physics = REPO / "reactive_anim" / "core" / "physics"
+    engine_users = {p for p in (REPO / "reactive_anim" / "core").rglob("*.py") if "mujoco" in _third_party(p)}
+    assert engine_users, "no module imports mujoco: the check reads nothing"
+    assert {p.relative_to(REPO).as_posix() for p in engine_users if physics not in p.parents} == set()

@@ -17,23 +17,11 @@ from reactive_anim.core.model.errors import ImpactError, SimulationError, Skelet
 from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.model.roles import assign_roles
 from reactive_anim.core.model.skeleton import Skeleton
-from reactive_anim.core.physics.ragdoll import (
-    ANATOMICAL_LIMITS,
-    BODY_ROLES,
-    PAPER_LIMITS,
-    TABLE1_MASSES,
-    build_ragdoll,
-    part_of,
-)
-from reactive_anim.core.physics.simulate import (
-    Workspace,
-    _body_local_rotations,
-    _mocap_table,
-    _place_bodies,
-    _samples,
-    _to_motion,
-    simulate_impact,
-)
+from reactive_anim.core.physics.anatomy import ANATOMICAL_LIMITS, BODY_ROLES, PAPER_LIMITS, TABLE1_MASSES, part_of
+from reactive_anim.core.physics.joints import _body_local_rotations, mocap_table, to_motion
+from reactive_anim.core.physics.ragdoll import build_ragdoll
+from reactive_anim.core.physics.simulate import _samples, simulate_impact
+from reactive_anim.core.physics.workspace import Workspace, place_bodies
 from tests.support.mocap import REPO, require_mocap
 
 SAMPLE_WALK = REPO / "sample_clips" / "walk.bvh"
@@ -141,18 +129,18 @@ def test_mocap_to_joint_angles_and_back_reproduces_the_pose(sample_walk, dataset
     motion = sample_walk if dataset == "sample" else bvh.read_bvh(require_mocap(DATASETS[dataset]))
     ragdoll = build_ragdoll(motion.skeleton, reference=None if dataset == "sample" else motion)
     frame = min(40, motion.num_frames - 1)
-    table = _mocap_table(ragdoll, motion, frame, frame)
+    table = mocap_table(ragdoll, motion, frame, frame)
     held = table.held(frame)
     workspace = Workspace(ragdoll)
-    _place_bodies(workspace, held)
+    place_bodies(workspace, held)
     rots, pelvis, _, _ = _samples(workspace, table.qpos, np.zeros((1, ragdoll.model.nv)))
-    out = _to_motion(ragdoll, held, held.local_rot[None], rots, pelvis, rots[0], fps=motion.fps)
+    out = to_motion(ragdoll, held, held.local_rot[None], rots, pelvis, rots[0], fps=motion.fps)
     error = np.linalg.norm(out.global_positions()[0] - motion.global_positions()[frame], axis=-1)
     assert error.max() < 1e-6
     assert quat.angle_between(out.local_rot[0], quat.normalize(motion.local_rot[frame])).max() < 1e-6
     # What is kept of the held frame is nothing but at the single hinges.
     rebuilt = _body_local_rotations(ragdoll, held, rots)[0]
-    lost = quat.angle_between(rebuilt, quat.normalize(held.local_rot[ragdoll.body_joints]))
+    lost = quat.angle_between(rebuilt, quat.normalize(held.local_rot[ragdoll.index.body_joints]))
     hinged = np.array([b.name[:-2] in ("knee", "elbow") for b in ragdoll.bodies])
     assert lost[~hinged].max() < 1e-6
     if dataset == "bandai":

@@ -33,7 +33,8 @@ from reactive_anim.core.model.errors import ImpactError
 from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.model.skeleton import Motion
 from reactive_anim.core.physics.ragdoll import Ragdoll, build_ragdoll
-from reactive_anim.core.physics.simulate import MAX_HIT_SPEED, SimResult, simulate_impact, track
+from reactive_anim.core.physics.simulate import SimResult, simulate_impact, track
+from reactive_anim.core.physics.watch import MAX_HIT_SPEED
 from tests.support.mocap import REPO
 from tools.devkit.poses import ground_axes
 

@@ -13,7 +13,8 @@ from reactive_anim.core.model import bvh
 from reactive_anim.core.model.errors import SimulationError
 from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.physics.ragdoll import build_ragdoll
-from reactive_anim.core.physics.simulate import SimResult, Workspace, simulate_impact, track
+from reactive_anim.core.physics.simulate import SimResult, simulate_impact, track
+from reactive_anim.core.physics.workspace import Workspace
 from tests.support.mocap import REPO
 
 IMPACTS = (Impact(30, "chest", (1.0, 0.0, 0.0), 120.0), Impact(52, "pelvis", (0.0, 1.0, 0.2), 200.0))
@@ -88,7 +89,7 @@ def test_a_simulation_leaves_the_ragdoll_unchanged(ragdoll, walk):
     assert all(np.array_equal(x, y) for x, y in zip(before, after, strict=True))
     assert model.opt.timestep == timestep
     with pytest.raises(ValueError):
-        ragdoll.limit_lo[0] = 0.0  # the ragdoll's arrays are read-only
+        ragdoll.index.limit_lo[0] = 0.0  # the ragdoll's arrays are read-only
 
 
 def test_a_workspace_is_not_shared_between_runs(ragdoll, walk):

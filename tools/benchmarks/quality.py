@@ -36,7 +36,7 @@ from reactive_anim.core.model.classes import is_fall
 from reactive_anim.core.model.errors import ReactiveAnimError
 from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.model.skeleton import Motion, root_child
-from reactive_anim.core.physics.simulate import Workspace
+from reactive_anim.core.physics.workspace import Workspace
 from reactive_anim.core.react import Reaction, ReactionSettings, character_ragdoll, react
 from reactive_anim.core.search.library import Library, load_library
 from reactive_anim.core.transition.casting import Casting

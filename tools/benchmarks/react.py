@@ -18,7 +18,7 @@ from reactive_anim.core.classify.classifier import load_classifier
 from reactive_anim.core.model import bvh
 from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.model.skeleton import Motion
-from reactive_anim.core.physics.simulate import Workspace
+from reactive_anim.core.physics.workspace import Workspace
 from reactive_anim.core.react import bake_reactions, character_ragdoll, react
 from reactive_anim.core.search.library import load_library
 from tools.devkit.mocap import REPO

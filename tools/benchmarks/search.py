@@ -37,7 +37,7 @@ from reactive_anim.core.classify.classifier import load_classifier
 from reactive_anim.core.model import bvh
 from reactive_anim.core.model.classes import CLASS_SLUGS
 from reactive_anim.core.model.impact import Impact
-from reactive_anim.core.physics.simulate import Workspace
+from reactive_anim.core.physics.workspace import Workspace
 from reactive_anim.core.react import character_ragdoll, impact_query
 from reactive_anim.core.search.library import ClipInfo, Library, load_library
 from reactive_anim.core.search.search_index import Best, find_best

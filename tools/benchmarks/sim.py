@@ -4,7 +4,7 @@ us per step, wall time of a 0.25 s BC window and a 0.5 s CD transition, for the 
 the largest shared skeleton, with the ragdoll's degrees of freedom; and how long CD tracking keeps
 a walker or a standing character up, pure PD against PD with the root assist.
 
-Runs reuse one Workspace (simulate.Workspace: the run's own model copy and MjData), as a worker
+Runs reuse one Workspace (physics.workspace.Workspace: the run's own model copy and MjData), as a worker
 thread does, so the BC and CD figures exclude making one; that cost is its own figure.
 """
 
@@ -19,8 +19,10 @@ import numpy as np
 from reactive_anim.core.model import bvh
 from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.physics.balance import RootAssist
-from reactive_anim.core.physics.ragdoll import TIMESTEP, build_ragdoll
-from reactive_anim.core.physics.simulate import SimState, Workspace, simulate_impact, state_from_mocap, track
+from reactive_anim.core.physics.mjcf import TIMESTEP
+from reactive_anim.core.physics.ragdoll import build_ragdoll
+from reactive_anim.core.physics.simulate import SimState, simulate_impact, state_from_mocap, track
+from reactive_anim.core.physics.workspace import Workspace
 from reactive_anim.core.react import ReactionSettings
 from tools.devkit.mocap import MOCAP, REPO, mocap_files
 from tools.devkit.tracking import kept_up_seconds
@@ -119,7 +121,7 @@ def _bare_steps(workspace: Workspace, runs: list[tuple[SimState, int]]) -> Calla
     """mj_step alone, `steps` from each state (floor at its ground, servos holding its pose), on the
     workspace's model (its body offsets and gains set by a run before) with an MjData of its own."""
     data = mujoco.MjData(workspace.model)
-    actuated = workspace.ragdoll.actuator_qpos
+    actuated = workspace.ragdoll.index.actuator_qpos
 
     def stepping() -> None:
         for state, steps in runs:

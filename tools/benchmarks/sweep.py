@@ -5,7 +5,7 @@ Per file (../shared/mocap, test and benchmark data only): PUSHES impacts at rand
 the clip), on random role bones, from random directions up to ELEVATION radians off horizontal,
 log-uniform STRENGTHS N·s, baked together (bake_reactions, the sample library, the shipped classifier).
 An impact refused as too strong for its bone (ImpactError: it would start the body part faster than
-simulate.MAX_HIT_SPEED) is halved and the bake tried again, up to RETRIES halvings; any other error
+watch.MAX_HIT_SPEED) is halved and the bake tried again, up to RETRIES halvings; any other error
 is counted and printed. The time is that of the bake that went through. Speeds are the fastest joint
 per frame, leaving out the root and the frames from one before each impact to three after it (the
 hit itself moves a hand at up to 50 m/s). Under the floor: the lowest joint (root left out) from

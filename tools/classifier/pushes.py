@@ -32,7 +32,8 @@ from reactive_anim.core.model.errors import ReactiveAnimError
 from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.model.skeleton import Motion
 from reactive_anim.core.physics.ragdoll import build_ragdoll
-from reactive_anim.core.physics.simulate import REACTION_WINDOW, Workspace
+from reactive_anim.core.physics.simulate import REACTION_WINDOW
+from reactive_anim.core.physics.workspace import Workspace
 
 HIT_ROLES = ("head", "chest", "pelvis", "shoulder_l", "shoulder_r", "hip_l", "hip_r")  # upper arms, thighs
 MIN_STRENGTH, MAX_STRENGTH = 10.0, 400.0  # N·s (issue 12)

@@ -17,7 +17,7 @@ What the simulation output needs before it is written, and why:
   X axis, so the rotation is projected onto X (the clip tests allow 1 degree off the hinge).
 - The simulation shares the trunk's bend over spine.001 and chest and the neck's over neck and
   head (simulate.py). It takes the toes from the servo target, which switches at C from the walk
-  to the keyed poses: the toes are written flat. The simulation's floor (simulate.py puts it where
+  to the keyed poses: the toes are written flat. The simulation's floor (contacts.py puts it where
   the start frame's soles are, a few mm off z = 0) is moved to z = 0.
 - Every other joint angle is written as the simulation gave it.
 
@@ -36,8 +36,10 @@ import numpy as np
 from reactive_anim.core.model import quat
 from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.model.skeleton import Motion
-from reactive_anim.core.physics.ragdoll import ANATOMICAL_LIMITS, Ragdoll, build_ragdoll
-from reactive_anim.core.physics.simulate import ServoGains, Workspace, simulate_impact, track
+from reactive_anim.core.physics.anatomy import ANATOMICAL_LIMITS
+from reactive_anim.core.physics.ragdoll import Ragdoll, build_ragdoll
+from reactive_anim.core.physics.simulate import simulate_impact, track
+from reactive_anim.core.physics.workspace import ServoGains, Workspace
 
 from .curves import key_timeline
 from .gaits import walk_clip

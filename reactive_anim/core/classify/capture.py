@@ -22,9 +22,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
 
+from ..physics.probe import PoseProbe
 from ..physics.ragdoll import Ragdoll
 
 GRAVITY = 9.81  # m/s², the simulation's
@@ -143,32 +143,23 @@ def foot_bodies(ragdoll: Ragdoll) -> list[int]:
 
 class SoleGeometry:
     """Where a ragdoll's soles are, from its geometry at given joint positions (qpos). Holds its own
-    MjData: one per thread."""
+    pose probe: one per thread."""
 
     def __init__(self, ragdoll: Ragdoll):
-        model = ragdoll.model
-        self.model = model
-        self.data = mujoco.MjData(model)
-        self.geoms = np.flatnonzero(np.isin(model.geom_bodyid, ragdoll.body_ids))
-        self.body_index = {int(b): k for k, b in enumerate(ragdoll.body_ids)}
-        feet = foot_bodies(ragdoll)
-        self.geom_body = np.array([self.body_index[int(model.geom_bodyid[g])] for g in self.geoms])
-        self.is_foot = np.isin(self.geom_body, feet)
-        self.radius = float(np.mean(model.geom_size[self.geoms[self.is_foot], 0]))
+        self.probe = PoseProbe(ragdoll)
+        self.geom_body = self.probe.geom_body
+        self.is_foot = np.isin(self.geom_body, foot_bodies(ragdoll))
+        self.radius = float(np.mean(self.probe.radii[self.is_foot]))
 
     def lowest_sole(self, qpos: np.ndarray) -> float:
         """Height of the lowest point of the soles at these joint positions (m)."""
-        self.data.qpos[:] = qpos
-        mujoco.mj_kinematics(self.model, self.data)
-        _, lowest = _capsule_ends(self.model, self.data, self.geoms)
+        _, lowest = self.probe.capsule_ends(qpos)
         return float(lowest[np.repeat(self.is_foot, 2)].min())
 
     def support(self, qpos: np.ndarray, floor: float, touching: np.ndarray | None = None) -> Support:
         """The support at these joint positions. touching: (B,) which ragdoll bodies touch the floor
         (SimResult.contacts of the sample), or None to judge it from the geometry."""
-        self.data.qpos[:] = qpos
-        mujoco.mj_kinematics(self.model, self.data)
-        ends, lowest = _capsule_ends(self.model, self.data, self.geoms)
+        ends, lowest = self.probe.capsule_ends(qpos)
         near = (lowest - floor <= CONTACT_GAP).reshape(-1, 2)
         body_touches = near.any(axis=1) if touching is None else np.asarray(touching, dtype=bool)[self.geom_body]
         sole_ends = near | (body_touches[:, None] & ~near.any(axis=1, keepdims=True) & _lower_end(lowest))
@@ -182,13 +173,3 @@ def _lower_end(lowest: np.ndarray) -> np.ndarray:
     touches with its lower one)."""
     pairs = lowest.reshape(-1, 2)
     return np.stack([pairs[:, 0] <= pairs[:, 1], pairs[:, 0] > pairs[:, 1]], axis=1)
-
-
-def _capsule_ends(model: mujoco.MjModel, data: mujoco.MjData, geoms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Both end centres of each capsule (a sphere: its centre twice), (2G, 3), and the height of the
-    surface's lowest point below each, (2G,)."""
-    centre = data.geom_xpos[geoms]
-    axis = data.geom_xmat[geoms].reshape(-1, 3, 3)[:, :, 2]
-    half = np.where(model.geom_type[geoms] == mujoco.mjtGeom.mjGEOM_CAPSULE, model.geom_size[geoms, 1], 0.0)
-    ends = np.stack([centre - axis * half[:, None], centre + axis * half[:, None]], axis=1).reshape(-1, 3)
-    return ends, ends[:, 2] - np.repeat(model.geom_size[geoms, 0], 2)

@@ -51,13 +51,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
 
 from ..model.errors import SkeletonError
 from ..model.skeleton import Motion, Skeleton, forward_kinematics
+from ..physics.joints import mocap_qpos
 from ..physics.ragdoll import Ragdoll
-from ..physics.simulate import SimResult, mocap_qpos
+from ..physics.simulate import SimResult
 from ..transition.retarget import leg_length
 from . import capture
 from .capture import SoleGeometry, Support
@@ -291,7 +291,7 @@ class FeatureReader:
 
     def capture_floor(self, motion: Motion) -> float:
         """The floor of a whole capture: the 2nd percentile over its frames of the lowest sole point.
-        (simulate.ground_level looks only near one frame, which in a jump or a fall has no foot on the
+        (contacts.ground_level looks only near one frame, which in a jump or a fall has no foot on the
         floor.)"""
         qpos = mocap_qpos(self.ragdoll, motion, np.arange(motion.num_frames))
         return float(np.percentile([self.soles.lowest_sole(q) for q in qpos], CAPTURE_FLOOR_PERCENTILE))
@@ -301,12 +301,8 @@ class FeatureReader:
         kept = self._kept_for(motion)
         missing = [f for f in dict.fromkeys(frames) if f not in kept]
         if missing:
-            model, data = self.soles.model, self.soles.data
             for frame, qpos in zip(missing, mocap_qpos(self.ragdoll, motion, np.asarray(missing)), strict=True):
-                data.qpos[:] = qpos
-                mujoco.mj_kinematics(model, data)
-                mujoco.mj_comPos(model, data)
-                kept[frame] = data.subtree_com[self.ragdoll.body_ids[0]].copy()
+                kept[frame] = self.soles.probe.centre_of_mass(qpos)
         return np.array([kept[f] for f in frames])
 
     def _kept_for(self, motion: Motion) -> dict[int, np.ndarray]:

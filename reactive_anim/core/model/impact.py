@@ -23,7 +23,7 @@ class Impact:
     bone: name of the skeleton joint whose body is hit (a merged bone hits the body it belongs to).
     direction: world direction of the push (Z up); normalised here, so any non-zero length is fine.
     strength: the impulse in N·s (>= 0). For scale: 30 is a shove, 100 a strong push, 300 a tackle
-      (on the trunk; simulate.MAX_HIT_SPEED refuses what would start the hit body part faster than
+      (on the trunk; physics.watch.MAX_HIT_SPEED refuses what would start the hit body part faster than
       50 m/s: a hand or a foot takes 50-190 N·s).
     reaction: optional reaction-class slug that overrides the classifier (None: let it decide).
     """
