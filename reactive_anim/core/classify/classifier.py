@@ -21,10 +21,12 @@ import json
 import threading
 from functools import lru_cache
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import onnxruntime
 
+from ..model.arrays import AnyFloatArray, FloatArray
 from ..model.classes import CLASS_SLUGS
 from ..model.errors import ClassifierError
 from ..model.skeleton import Motion
@@ -76,9 +78,10 @@ class Classifier:
                 f"{len(self.classes)} classes its metadata names"
             )
 
-    def probabilities(self, x: np.ndarray) -> np.ndarray:
+    def probabilities(self, x: AnyFloatArray) -> AnyFloatArray:
         """Probabilities over `classes`, (C,) or (N, C), of inputs (F,) or (N, F) in the order of
-        `feature_names` (features.select(reaction_features(...), classifier.feature_names))."""
+        `feature_names` (features.select(reaction_features(...), classifier.feature_names)); of the
+        model's float width (float32 for ours)."""
         x = np.asarray(x, dtype=np.float64)
         width = len(self.feature_names)
         if x.ndim not in (1, 2) or x.shape[-1] != width:
@@ -91,7 +94,7 @@ class Classifier:
         out = np.asarray(self.session.run([OUTPUT_NAME], {INPUT_NAME: rows})[0])
         return out[0] if x.ndim == 1 else out
 
-    def class_probabilities(self, features: np.ndarray) -> np.ndarray:
+    def class_probabilities(self, features: AnyFloatArray) -> FloatArray:
         """Probabilities in CLASS_SLUGS order, (K,) or (N, K) for K classes, of EXTENDED_FEATURES rows; a class
         the model does not know gets 0."""
         features = np.asarray(features, dtype=np.float64)
@@ -105,7 +108,7 @@ class Classifier:
         out[..., self._columns] = known
         return out
 
-    def classify(self, before: Motion, bc: SimResult, ragdoll: Ragdoll) -> np.ndarray:
+    def classify(self, before: Motion, bc: SimResult, ragdoll: Ragdoll) -> FloatArray:
         """The pipeline's call (react.ReactionClassifier): class probabilities in CLASS_SLUGS order
         of a BC simulation of `before` on `ragdoll`."""
         reader = self._reader(ragdoll)
@@ -132,7 +135,7 @@ def _session(path: Path) -> onnxruntime.InferenceSession:
         raise ClassifierError(f"{path}: not an ONNX model onnxruntime can load ({reason})") from None
 
 
-def _json_list(path: Path, metadata: dict[str, str], key: str) -> list:
+def _json_list(path: Path, metadata: dict[str, str], key: str) -> list[object]:
     name = METADATA_KEYS[key]
     if name not in metadata:
         raise ClassifierError(f"{path}: the model's metadata has no '{name}' list")
@@ -142,31 +145,32 @@ def _json_list(path: Path, metadata: dict[str, str], key: str) -> list:
         raise ClassifierError(f"{path}: the model's metadata '{name}' is not JSON ({exc})") from None
     if not isinstance(value, list) or not value:
         raise ClassifierError(f"{path}: the model's metadata '{name}' is not a non-empty list")
-    return value
+    return cast(list[object], value)  # a JSON array: its items of any JSON type
 
 
 def _class_list(path: Path, metadata: dict[str, str]) -> tuple[str, ...]:
     classes = _json_list(path, metadata, "classes")
-    unknown = [c for c in classes if c not in CLASS_SLUGS]
-    if unknown or len(set(classes)) != len(classes):
+    slugs = [c for c in classes if isinstance(c, str) and c in CLASS_SLUGS]
+    if len(slugs) != len(classes) or len(set(slugs)) != len(slugs):
         raise ClassifierError(
             f"{path}: the model's classes {classes} must be distinct reaction classes of: {', '.join(CLASS_SLUGS)}"
         )
-    return tuple(classes)
+    return tuple(slugs)
 
 
 def _feature_list(path: Path, metadata: dict[str, str]) -> tuple[str, ...]:
     names = _json_list(path, metadata, "features")
-    unknown = [n for n in names if n not in EXTENDED_FEATURES]
-    if unknown:
+    known = [n for n in names if isinstance(n, str) and n in EXTENDED_FEATURES]
+    if len(known) != len(names):
+        unknown = [n for n in names if n not in EXTENDED_FEATURES]
         raise ClassifierError(
             f"{path}: the model asks for features this version does not compute: {', '.join(map(str, unknown))}"
         )
-    return tuple(names)
+    return tuple(known)
 
 
-def _numbers(path: Path, metadata: dict[str, str], key: str, count: int) -> np.ndarray:
-    values = np.asarray(_json_list(path, metadata, key), dtype=float)
+def _numbers(path: Path, metadata: dict[str, str], key: str, count: int) -> FloatArray:
+    values = np.asarray(_json_list(path, metadata, key), dtype=np.float64)
     if values.shape != (count,) or not np.all(np.isfinite(values)) or (key == "scale" and np.any(values == 0)):
         raise ClassifierError(f"{path}: the model's metadata '{METADATA_KEYS[key]}' must be {count} finite numbers")
     return values

@@ -79,9 +79,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..model.arrays import FloatArray
 from ..model.impact import Impact
 from ..model.skeleton import Motion
-from ..physics.simulate import REACTION_WINDOW, SimResult, Workspace, simulate_impact
+from ..physics.simulate import REACTION_WINDOW, SimResult, simulate_impact
+from ..physics.workspace import Workspace
 from .capture import GRAVITY
 from .features import Body, FeatureReader, ReactionState
 
@@ -115,14 +117,14 @@ class Outcome:
     reaction: str
     steps: int | None
     direction: str
-    xcom_shift: np.ndarray
+    xcom_shift: FloatArray
     excess: float
     speed: float
     down: bool
     collapsing: bool = False
 
 
-def collapsing(body: Body, com: np.ndarray, com_velocity: np.ndarray, floor: float) -> bool:
+def collapsing(body: Body, com: FloatArray, com_velocity: FloatArray, floor: float) -> bool:
     """Whether the body is already going down at C: its centre of mass below COLLAPSE_HEIGHT leg
     lengths and sinking faster than COLLAPSE_SPEED (see the constants)."""
     return bool(com[2] - floor < COLLAPSE_HEIGHT * body.leg_length and com_velocity[2] < -COLLAPSE_SPEED)
@@ -147,7 +149,7 @@ def judge(body: Body, state: ReactionState, window: float = REACTION_WINDOW, *, 
     return Outcome(reaction, steps, direction, local, excess, speed, state.support.down, sinking)
 
 
-def _direction(local: np.ndarray) -> str:
+def _direction(local: FloatArray) -> str:
     angle = math.degrees(math.atan2(abs(local[1]), local[0]))  # 0 ahead .. 180 behind
     if angle <= SIDE_ANGLE:
         return "forward"

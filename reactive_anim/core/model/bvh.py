@@ -22,10 +22,12 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TypedDict, Unpack
 
 import numpy as np
 
 from . import quat
+from .arrays import FloatArray
 from .errors import BVHError
 from .skeleton import Motion, Skeleton
 
@@ -51,10 +53,10 @@ class Channels:
     """One joint's channels in file order: position axes (0..2) and rotation axis letters, each
     with its column in a motion line (a file may interleave positions and rotations)."""
 
-    position: list[int] = field(default_factory=list)
-    position_columns: list[int] = field(default_factory=list)
+    position: list[int] = field(default_factory=list[int])
+    position_columns: list[int] = field(default_factory=list[int])
     rotation: str = ""
-    rotation_columns: list[int] = field(default_factory=list)
+    rotation_columns: list[int] = field(default_factory=list[int])
 
     @property
     def count(self) -> int:
@@ -68,11 +70,11 @@ class BVHData:
     path: str
     names: list[str]
     parents: list[int]
-    offsets: np.ndarray
-    end_sites: dict[int, np.ndarray]
+    offsets: FloatArray
+    end_sites: dict[int, FloatArray]
     channels: list[Channels]
     frame_time: float
-    values: np.ndarray
+    values: FloatArray
 
     @property
     def num_frames(self) -> int:
@@ -159,7 +161,7 @@ class _HierarchyParser:
         self.name_lines: dict[str, int] = {}
         self.parents: list[int] = []
         self.offsets: list[tuple[float, float, float]] = []
-        self.end_sites: dict[int, np.ndarray] = {}
+        self.end_sites: dict[int, FloatArray] = {}
         self.channels: list[Channels] = []
         self.columns = 0
 
@@ -177,7 +179,7 @@ class _HierarchyParser:
 
     def _offset(self, context: str) -> tuple[float, float, float]:
         line = self.t.expect("OFFSET", f"in {context}")
-        vals = []
+        vals: list[float] = []
         for _ in range(3):
             tok, tok_line = self.t.take(f"OFFSET needs 3 numbers ({context})")
             if tok_line != line:
@@ -270,7 +272,7 @@ def _find_motion_line(lines: list[str]) -> int | None:
 def _motion_header(lines: list[str], start: int, label: str) -> tuple[int, float, int]:
     """Parse 'Frames:' and 'Frame Time:' after MOTION; return (frames, frame_time, first data line index)."""
     i = start + 1
-    header = []
+    header: list[tuple[list[str], int]] = []
     while len(header) < 2:
         while i < len(lines) and not lines[i].strip():
             i += 1
@@ -298,7 +300,7 @@ def _motion_header(lines: list[str], start: int, label: str) -> tuple[int, float
 
 def _motion_values(
     lines: list[str], first: int, frames: int, columns: int, *, frames_line: int, label: str
-) -> np.ndarray:
+) -> FloatArray:
     """The (frames, columns) block, vectorised; on any mismatch a per-line pass names the line."""
     numbered = [(n, text) for n, text in enumerate(lines[first:], first + 1) if text.strip()]
     if len(numbered) > frames:
@@ -327,7 +329,7 @@ def _motion_values(
     raise BVHError("the motion block cannot be read as numbers", label, numbered[0][0] if numbered else frames_line)
 
 
-def _number_table(numbered: list[tuple[int, str]], columns: int) -> np.ndarray | None:
+def _number_table(numbered: list[tuple[int, str]], columns: int) -> FloatArray | None:
     """The lines as a (lines, columns) array in one C pass, or None where they cannot be read so
     (a token that is not a number, a line with another count of values). numpy's loadtxt checks
     every line's count as it parses; it is also faster than fromstring on the joined text (58
@@ -379,7 +381,7 @@ def parse_bvh(source: str | Path | bytes, name: str | None = None) -> BVHData:
         path=label,
         names=parser.names,
         parents=parser.parents,
-        offsets=np.array(parser.offsets, dtype=float),
+        offsets=np.array(parser.offsets, dtype=np.float64),
         end_sites=parser.end_sites,
         channels=parser.channels,
         frame_time=frame_time,
@@ -474,7 +476,7 @@ def format_bvh(
     to_file = quat.conj(_Y_TO_Z) if up.upper() == "Y" else quat.identity()
     tiny = 0.5 * 10.0**-decimals
 
-    def file_vectors(v: np.ndarray) -> np.ndarray:
+    def file_vectors(v: FloatArray) -> FloatArray:
         out = quat.rotate(to_file, v) / scale
         out[np.abs(out) < tiny] = 0.0  # no "-0.000000"
         return out
@@ -495,7 +497,7 @@ def _hierarchy_lines(
     joint: int,
     order: str,
     *,
-    file_vectors: Callable[[np.ndarray], np.ndarray],
+    file_vectors: Callable[[FloatArray], FloatArray],
     number: str,
     lines: list[str],
     depth: int = 0,
@@ -525,12 +527,12 @@ def _writes_position(motion: Motion, joint: int) -> bool:
 
 
 def _motion_block(
-    motion: Motion, euler_degrees: np.ndarray, file_vectors: Callable[[np.ndarray], np.ndarray]
-) -> np.ndarray:
+    motion: Motion, euler_degrees: FloatArray, file_vectors: Callable[[FloatArray], FloatArray]
+) -> FloatArray:
     """(T, channels) values in the hierarchy's channel order: per joint [positions] + rotations."""
     translations = file_vectors(motion.joint_offsets())
     translations[:, 0] = file_vectors(motion.root_pos)
-    columns = []
+    columns: list[FloatArray] = []
     for j in range(motion.skeleton.num_joints):
         if _writes_position(motion, j):
             columns.append(translations[:, j])
@@ -538,6 +540,15 @@ def _motion_block(
     return np.concatenate(columns, axis=1)
 
 
-def write_bvh(path: str | Path, motion: Motion, **options) -> None:
+class FormatOptions(TypedDict, total=False):
+    """The keyword options of `format_bvh`, so `write_bvh` passes on only those, each typed."""
+
+    rotation_order: str
+    unit: str | float
+    up: str
+    decimals: int
+
+
+def write_bvh(path: str | Path, motion: Motion, **options: Unpack[FormatOptions]) -> None:
     """Write a Motion as a BVH file; options as `format_bvh`."""
     Path(path).write_text(format_bvh(motion, **options), encoding="utf-8", newline="\n")

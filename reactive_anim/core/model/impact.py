@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .arrays import FloatArray
 from .errors import ImpactError
 
 
@@ -38,9 +39,9 @@ class Impact:
         frame = float(self.frame)
         if not math.isfinite(frame) or frame < 0:
             raise ImpactError(f"impact on '{self.bone}': frame must be a finite number >= 0, got {self.frame!r}")
-        if not isinstance(self.bone, str) or not self.bone:
+        if not _is_name(self.bone):
             raise ImpactError(f"impact at frame {frame:g}: bone must be a joint name, got {self.bone!r}")
-        direction = np.asarray(self.direction, dtype=float).reshape(-1)
+        direction = np.asarray(self.direction, dtype=np.float64).reshape(-1)
         if direction.shape != (3,) or not np.all(np.isfinite(direction)):
             raise ImpactError(
                 f"impact on '{self.bone}': direction must be three finite numbers, got {self.direction!r}"
@@ -53,13 +54,18 @@ class Impact:
             raise ImpactError(
                 f"impact on '{self.bone}': strength must be a finite impulse >= 0 N·s, got {self.strength!r}"
             )
-        if self.reaction is not None and (not isinstance(self.reaction, str) or not self.reaction):
+        if self.reaction is not None and not _is_name(self.reaction):
             raise ImpactError(f"impact on '{self.bone}': reaction must be a class slug or None, got {self.reaction!r}")
         object.__setattr__(self, "frame", frame)
         object.__setattr__(self, "direction", tuple(float(v) for v in direction / length))
         object.__setattr__(self, "strength", strength)
 
     @property
-    def impulse(self) -> np.ndarray:
+    def impulse(self) -> FloatArray:
         """The impulse vector, N·s, (3,)."""
         return np.asarray(self.direction) * self.strength
+
+
+def _is_name(value: object) -> bool:
+    """A non-empty string: the annotations say str, but a caller (a script, a .blend) may pass anything."""
+    return isinstance(value, str) and bool(value)

@@ -7,32 +7,36 @@ intrinsic rotations applied left to right, and vectors are column vectors.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from numpy.typing import ArrayLike
+
+from .arrays import FloatArray
 
 AXES = "XYZ"
 _EPS = 1e-12
 
 
-def identity(shape: tuple[int, ...] = ()) -> np.ndarray:
+def identity(shape: tuple[int, ...] = ()) -> FloatArray:
     """Identity rotations of the given leading shape: `shape + (4,)`."""
     q = np.zeros(tuple(shape) + (4,))
     q[..., 0] = 1.0
     return q
 
 
-def normalize(q: ArrayLike) -> np.ndarray:
+def normalize(q: ArrayLike) -> FloatArray:
     """Unit quaternions; a zero quaternion stays zero rather than becoming NaN."""
-    q = np.asarray(q, dtype=float)
+    q = np.asarray(q, dtype=np.float64)
     n = np.linalg.norm(q, axis=-1, keepdims=True)
     return q / np.maximum(n, _EPS)
 
 
-def mul(a: ArrayLike, b: ArrayLike) -> np.ndarray:
+def mul(a: ArrayLike, b: ArrayLike) -> FloatArray:
     """Hamilton product a*b (apply b first, then a), broadcast over leading axes.
 
     Each component is written into one output array: np.stack would copy all four again."""
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     aw, ax, ay, az = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
     bw, bx, by, bz = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
     out = np.empty(_shape(a, b))
@@ -43,28 +47,28 @@ def mul(a: ArrayLike, b: ArrayLike) -> np.ndarray:
     return out
 
 
-def _shape(a: np.ndarray, b: np.ndarray) -> tuple[int, ...]:
+def _shape(a: FloatArray, b: FloatArray) -> tuple[int, ...]:
     """The broadcast shape of two arrays; np.broadcast_shapes costs more than a small product."""
     return a.shape if a.shape == b.shape else np.broadcast_shapes(a.shape, b.shape)
 
 
-def conj(q: ArrayLike) -> np.ndarray:
+def conj(q: ArrayLike) -> FloatArray:
     """Conjugate, the inverse of a unit quaternion."""
-    q = np.asarray(q, dtype=float)
+    q = np.asarray(q, dtype=np.float64)
     return q * np.array([1.0, -1.0, -1.0, -1.0])
 
 
-def rotate(q: ArrayLike, v: ArrayLike) -> np.ndarray:
+def rotate(q: ArrayLike, v: ArrayLike) -> FloatArray:
     """Rotate vectors `(..., 3)` by unit quaternions `(..., 4)`."""
-    q = np.asarray(q, dtype=float)
-    v = np.asarray(v, dtype=float)
+    q = np.asarray(q, dtype=np.float64)
+    v = np.asarray(v, dtype=np.float64)
     w = q[..., :1]
     u = q[..., 1:]
     t = 2.0 * _cross(u, v)
     return v + w * t + _cross(u, t)
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
     """np.cross of 3-vectors, the same products in the same order (so bit for bit the same), without
     its axis juggling, which costs more than the arithmetic on the small arrays of FK."""
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
@@ -76,10 +80,10 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def from_axis_angle(axis: ArrayLike, angle: ArrayLike) -> np.ndarray:
+def from_axis_angle(axis: ArrayLike, angle: ArrayLike) -> FloatArray:
     """Rotation by `angle` radians `(...)` about unit `axis` `(..., 3)`."""
-    axis = np.asarray(axis, dtype=float)
-    half = 0.5 * np.asarray(angle, dtype=float)[..., None]
+    axis = np.asarray(axis, dtype=np.float64)
+    half = 0.5 * np.asarray(angle, dtype=np.float64)[..., None]
     out = np.empty(np.broadcast_shapes(half.shape[:-1] + (4,), axis.shape[:-1] + (4,)))
     out[..., :1] = np.cos(half)
     out[..., 1:] = np.sin(half) * axis
@@ -93,14 +97,14 @@ def _axis_index(order: str) -> list[int]:
     return idx
 
 
-def from_euler(angles: ArrayLike, order: str) -> np.ndarray:
+def from_euler(angles: ArrayLike, order: str) -> FloatArray:
     """Quaternions from Euler angles in radians `(..., len(order))`, composed left to right.
 
     `order` may name one to three distinct axes (a BVH joint may animate fewer than three). The
     first axis' turn is the start (the identity turned by it); each further step is
     mul(q, from_axis_angle(axis, angle)) written as `turn_after`, at a third of the cost.
     """
-    angles = np.asarray(angles, dtype=float)
+    angles = np.asarray(angles, dtype=np.float64)
     axes = [AXES.index(a) for a in order.upper()]
     if not axes:
         return identity(angles.shape[:-1])
@@ -112,7 +116,7 @@ def from_euler(angles: ArrayLike, order: str) -> np.ndarray:
     return q
 
 
-def turn_after(q: np.ndarray, axis: int, c: np.ndarray | float, s: np.ndarray | float) -> np.ndarray:
+def turn_after(q: FloatArray, axis: int, c: FloatArray | float, s: FloatArray | float) -> FloatArray:
     """mul(q, (c, s * e_axis)): q followed by a turn about a coordinate axis (c, s: the cosine and
     sine of half its angle). The products by the turn's zero components are left out: they add
     exact zeros, so the value is mul's, bit for bit (but for the sign of a zero)."""
@@ -126,7 +130,7 @@ def turn_after(q: np.ndarray, axis: int, c: np.ndarray | float, s: np.ndarray | 
     return out
 
 
-def turn_before(q: np.ndarray, axis: int, c: np.ndarray | float, s: np.ndarray | float) -> np.ndarray:
+def turn_before(q: FloatArray, axis: int, c: FloatArray | float, s: FloatArray | float) -> FloatArray:
     """mul((c, s * e_axis), q): a turn about a coordinate axis after q, as `turn_after` does it."""
     w, v = q[..., 0], [q[..., 1], q[..., 2], q[..., 3]]
     i, j = (axis + 1) % 3, (axis + 2) % 3
@@ -138,14 +142,14 @@ def turn_before(q: np.ndarray, axis: int, c: np.ndarray | float, s: np.ndarray |
     return out
 
 
-def to_euler(q: ArrayLike, order: str) -> np.ndarray:
+def to_euler(q: ArrayLike, order: str) -> FloatArray:
     """Euler angles in radians `(..., 3)` for a permutation of XYZ, inverse of `from_euler`.
 
     The last angle is taken from what the first two leave over, so the three angles always
     rebuild the rotation exactly, gimbal lock included (where the first absorbs the shared freedom).
     """
     i, j, k = _axis_index(order)
-    q = np.asarray(q, dtype=float)
+    q = np.asarray(q, dtype=np.float64)
     m = _matrix_entries(normalize(q), [(i, k), (i, i), (i, j), (j, k), (k, k)])
     s = 1.0 if (j - i) % 3 == 1 else -1.0  # even (cyclic) or odd permutation
     middle = np.arctan2(s * m[i, k], np.hypot(m[i, i], m[i, j]))
@@ -161,7 +165,7 @@ def to_euler(q: ArrayLike, order: str) -> np.ndarray:
     return out
 
 
-def to_matrix(q: ArrayLike) -> np.ndarray:
+def to_matrix(q: ArrayLike) -> FloatArray:
     """Rotation matrices `(..., 3, 3)` of unit quaternions."""
     q = normalize(q)
     m = np.empty(q.shape[:-1] + (3, 3))
@@ -171,7 +175,7 @@ def to_matrix(q: ArrayLike) -> np.ndarray:
 
 
 # Each entry of a unit quaternion's rotation matrix, from (w, x, y, z).
-_MATRIX_ENTRIES = {
+_MATRIX_ENTRIES: dict[tuple[int, int], Callable[[FloatArray, FloatArray, FloatArray, FloatArray], FloatArray]] = {
     (0, 0): lambda w, x, y, z: 1 - 2 * (y * y + z * z),
     (0, 1): lambda w, x, y, z: 2 * (x * y - w * z),
     (0, 2): lambda w, x, y, z: 2 * (x * z + w * y),
@@ -184,7 +188,7 @@ _MATRIX_ENTRIES = {
 }
 
 
-def _matrix_entries(q: np.ndarray, entries: list[tuple[int, int]]) -> dict[tuple[int, int], np.ndarray]:
+def _matrix_entries(q: FloatArray, entries: list[tuple[int, int]]) -> dict[tuple[int, int], FloatArray]:
     """Only the wanted entries of the rotation matrices of unit quaternions `q` (already
     normalised): Euler angles need five of the nine, and on the small arrays of a simulation's
     pose tables numpy's per-call cost is most of the work."""
@@ -192,12 +196,12 @@ def _matrix_entries(q: np.ndarray, entries: list[tuple[int, int]]) -> dict[tuple
     return {entry: _MATRIX_ENTRIES[entry](w, x, y, z) for entry in dict.fromkeys(entries)}
 
 
-def sandwich(r: ArrayLike, q: ArrayLike) -> np.ndarray:
+def sandwich(r: ArrayLike, q: ArrayLike) -> FloatArray:
     """r q r^-1 for unit `r`: the rotation `q` carried into the frame that `r` turns to (same angle,
     its axis turned by r). A matrix on the vector part: 15 products and sums a quaternion where
     mul(mul(r, q), conj(r)) takes 56, for the long per-bone conversions of action I/O. Equal to
     that to rounding, not bit for bit."""
-    r, q = np.asarray(r, dtype=float), np.asarray(q, dtype=float)
+    r, q = np.asarray(r, dtype=np.float64), np.asarray(q, dtype=np.float64)
     m = to_matrix(r)
     x, y, z = q[..., 1], q[..., 2], q[..., 3]
     out = np.empty(_shape(r, q))
@@ -207,9 +211,9 @@ def sandwich(r: ArrayLike, q: ArrayLike) -> np.ndarray:
     return out
 
 
-def from_matrix(m: ArrayLike) -> np.ndarray:
+def from_matrix(m: ArrayLike) -> FloatArray:
     """Unit quaternions (w >= 0) of rotation matrices `(..., 3, 3)`, stable for every angle."""
-    m = np.asarray(m, dtype=float)
+    m = np.asarray(m, dtype=np.float64)
     m00, m01, m02 = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2]
     m10, m11, m12 = m[..., 1, 0], m[..., 1, 1], m[..., 1, 2]
     m20, m21, m22 = m[..., 2, 0], m[..., 2, 1], m[..., 2, 2]
@@ -229,7 +233,7 @@ def from_matrix(m: ArrayLike) -> np.ndarray:
     return np.where(q[..., :1] < 0, -q, q)
 
 
-def _columns(*parts: np.ndarray) -> np.ndarray:
+def _columns(*parts: FloatArray) -> FloatArray:
     """np.stack(parts, -1) for same-shaped arrays, into one array without stack's copies."""
     out = np.empty(parts[0].shape + (len(parts),))
     for k, part in enumerate(parts):
@@ -237,20 +241,20 @@ def _columns(*parts: np.ndarray) -> np.ndarray:
     return out
 
 
-def angle_between(a: ArrayLike, b: ArrayLike) -> np.ndarray:
+def angle_between(a: ArrayLike, b: ArrayLike) -> FloatArray:
     """Rotation angle in radians of a^-1 b, in [0, pi]; q and -q count as the same rotation."""
     d = mul(conj(a), b)
     return 2.0 * np.arctan2(np.linalg.norm(d[..., 1:], axis=-1), np.abs(d[..., 0]))
 
 
-def slerp(a: ArrayLike, b: ArrayLike, t: ArrayLike, *, shortest: bool = True) -> np.ndarray:
+def slerp(a: ArrayLike, b: ArrayLike, t: ArrayLike, *, shortest: bool = True) -> FloatArray:
     """Spherical interpolation; `t` broadcasts against `(...)`. Along the shorter arc, or with
     shortest=False along the arc toward `b` as signed (the longer way round where <a, b> < 0), for
     a caller that keeps the arc continuous over time (blend.blend); a whole turn (b = -a) has no
     axis to take and goes the short way, staying at `a`."""
     a = normalize(a)
     b = normalize(b)
-    t = np.asarray(t, dtype=float)[..., None]
+    t = np.asarray(t, dtype=np.float64)[..., None]
     dot = np.sum(a * b, axis=-1, keepdims=True)
     flip = dot < 0 if shortest else dot < -1.0 + 1e-12
     b = np.where(flip, -b, b)
@@ -264,13 +268,13 @@ def slerp(a: ArrayLike, b: ArrayLike, t: ArrayLike, *, shortest: bool = True) ->
     return normalize(wa * a + wb * b)
 
 
-def make_continuous(q: ArrayLike) -> np.ndarray:
+def make_continuous(q: ArrayLike) -> FloatArray:
     """Flip signs along axis 0 (time) so consecutive quaternions lie in the same hemisphere.
 
     Keyframe curves interpolate components linearly; without this a q / -q jump would make a bone
     spin the long way round between two frames.
     """
-    q = np.array(q, dtype=float, copy=True)
+    q = np.array(q, dtype=np.float64, copy=True)
     if len(q) < 2:
         return q
     dots = np.sum(q[1:] * q[:-1], axis=-1)

@@ -54,6 +54,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .arrays import FloatArray
 from .errors import SkeletonError
 from .skeleton import Skeleton
 
@@ -148,7 +149,7 @@ def _path_down(skeleton: Skeleton, top: int, bottom: int) -> list[int] | None:
     return chain[: chain.index(top)][::-1]
 
 
-def _bone_lengths(skeleton: Skeleton) -> np.ndarray:
+def _bone_lengths(skeleton: Skeleton) -> FloatArray:
     """Per joint, the length of its parent's bone toward it, with near-zero lengths set to 0
     (iClone writes co-located joints as OFFSET -0.000000 -0.000069 0.000001)."""
     lengths = np.linalg.norm(skeleton.offsets, axis=1)
@@ -163,7 +164,7 @@ def _bone_lengths(skeleton: Skeleton) -> np.ndarray:
 def _named(skeleton: Skeleton, part: str, side: str | None) -> list[int]:
     """Joints whose name, side aside, is one of the part's names, nearest the root first."""
     pattern = re.compile(PART_NAMES[part])
-    found = []
+    found: list[int] = []
     for j, name in enumerate(skeleton.names):
         read = read_joint_name(name)
         if read.side == side and pattern.fullmatch(read.core):
@@ -291,7 +292,7 @@ def _find_torso(skeleton: Skeleton, roles: dict[str, int]) -> None:
 
 def _checked_overrides(skeleton: Skeleton, overrides: dict[str, str] | None) -> dict[str, int]:
     """Overrides as role -> joint index; unknown roles and joints are errors naming them."""
-    fixed = {}
+    fixed: dict[str, int] = {}
     for role, joint in (overrides or {}).items():
         if role not in ALL_ROLES:
             raise SkeletonError(f"unknown joint role '{role}' in the overrides; roles are: {', '.join(ALL_ROLES)}")
@@ -462,7 +463,7 @@ def preset_roles(preset: str, names: list[str]) -> dict[str, str]:
     if preset not in RIG_PRESETS:
         raise SkeletonError(f"unknown rig preset '{preset}'; presets are: {', '.join(RIG_PRESETS)}")
     bare = {_NAMESPACE.sub("", name): name for name in names}
-    found = {}
+    found: dict[str, str] = {}
     for role, bone in RIG_PRESETS[preset].items():
         name = bone if bone in names else bare.get(_NAMESPACE.sub("", bone))
         if name is not None:

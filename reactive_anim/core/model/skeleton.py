@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from . import quat
+from .arrays import BoolArray, FloatArray, IndexArray, IntArray
 from .errors import SkeletonError
 
 
@@ -29,18 +30,18 @@ class Skeleton:
     """
 
     names: list[str]
-    parents: np.ndarray
-    offsets: np.ndarray
-    end_sites: dict[int, np.ndarray] = field(default_factory=dict)
-    roles: dict[str, str] = field(default_factory=dict)
+    parents: IntArray
+    offsets: FloatArray
+    end_sites: dict[int, FloatArray] = field(default_factory=dict[int, FloatArray])
+    roles: dict[str, str] = field(default_factory=dict[str, str])
     # Joints by depth below the root (the root's level first): forward kinematics goes a level at a
     # time, a handful of array operations for all of a level's joints instead of one per joint.
-    levels: list[np.ndarray] = field(init=False, repr=False, compare=False)
+    levels: list[IndexArray] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self.names = list(self.names)
         self.parents = np.asarray(self.parents, dtype=np.int64)
-        self.offsets = np.asarray(self.offsets, dtype=float).reshape(-1, 3)
+        self.offsets = np.asarray(self.offsets, dtype=np.float64).reshape(-1, 3)
         count = len(self.names)
         if count == 0:
             raise SkeletonError("a skeleton needs at least one joint")
@@ -74,7 +75,7 @@ class Skeleton:
     def children(self, joint: int) -> list[int]:
         return [int(c) for c in np.flatnonzero(self.parents == joint)]
 
-    def rest_positions(self) -> np.ndarray:
+    def rest_positions(self) -> FloatArray:
         """World positions of every joint in the rest pose, (J, 3)."""
         pos = np.zeros((self.num_joints, 3))
         pos[0] = self.offsets[0]
@@ -102,13 +103,13 @@ class Motion:
 
     skeleton: Skeleton
     fps: float
-    root_pos: np.ndarray
-    local_rot: np.ndarray
-    local_pos: np.ndarray | None = None
+    root_pos: FloatArray
+    local_rot: FloatArray
+    local_pos: FloatArray | None = None
 
     def __post_init__(self) -> None:
-        self.root_pos = np.asarray(self.root_pos, dtype=float)
-        self.local_rot = np.asarray(self.local_rot, dtype=float)
+        self.root_pos = np.asarray(self.root_pos, dtype=np.float64)
+        self.local_rot = np.asarray(self.local_rot, dtype=np.float64)
         frames = self.root_pos.shape[0]
         count = self.skeleton.num_joints
         if self.root_pos.shape != (frames, 3) or self.local_rot.shape != (frames, count, 4):
@@ -117,7 +118,7 @@ class Motion:
                 f"local_rot {self.local_rot.shape}"
             )
         if self.local_pos is not None:
-            self.local_pos = np.asarray(self.local_pos, dtype=float)
+            self.local_pos = np.asarray(self.local_pos, dtype=np.float64)
             if self.local_pos.shape != (frames, count, 3):
                 raise SkeletonError(f"local_pos has shape {self.local_pos.shape}, expected {(frames, count, 3)}")
         if not self.fps > 0:
@@ -131,20 +132,20 @@ class Motion:
     def frame_time(self) -> float:
         return 1.0 / self.fps
 
-    def joint_offsets(self) -> np.ndarray:
+    def joint_offsets(self) -> FloatArray:
         """Per-frame parent-relative translations (T, J, 3): local_pos or the rest offsets."""
         if self.local_pos is not None:
             return self.local_pos
         return np.broadcast_to(self.skeleton.offsets, (self.num_frames,) + self.skeleton.offsets.shape)
 
-    def global_transforms(self) -> tuple[np.ndarray, np.ndarray]:
+    def global_transforms(self) -> tuple[FloatArray, FloatArray]:
         """World joint positions (T, J, 3) and rotations (T, J, 4) by forward kinematics."""
         return forward_kinematics(self.skeleton, self.root_pos, self.local_rot, self.joint_offsets())
 
-    def global_positions(self) -> np.ndarray:
+    def global_positions(self) -> FloatArray:
         return self.global_transforms()[0]
 
-    def global_rotations(self) -> np.ndarray:
+    def global_rotations(self) -> FloatArray:
         return self.global_transforms()[1]
 
     def slice(self, start: int, stop: int) -> Motion:
@@ -173,8 +174,8 @@ class Motion:
 
 
 def forward_kinematics(
-    skeleton: Skeleton, root_pos: np.ndarray, local_rot: np.ndarray, offsets: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+    skeleton: Skeleton, root_pos: FloatArray, local_rot: FloatArray, offsets: FloatArray
+) -> tuple[FloatArray, FloatArray]:
     """Global positions (T, J, 3) and rotations (T, J, 4), vectorised over frames.
 
     offsets: (T, J, 3) or (J, 3) parent-relative translations; the root's row is ignored.
@@ -192,19 +193,19 @@ def forward_kinematics(
     return pos, rot
 
 
-def frame_times(motion: Motion, fps: float) -> np.ndarray:
+def frame_times(motion: Motion, fps: float) -> FloatArray:
     """Times in seconds of the frames at `fps` that fit within the motion (from its first frame)."""
     duration = (motion.num_frames - 1) / motion.fps
     return np.arange(int(np.floor(duration * fps + 1e-9)) + 1) / fps
 
 
-def resample(motion: Motion, times: np.ndarray) -> Motion:
+def resample(motion: Motion, times: FloatArray) -> Motion:
     """The motion at the given times in seconds (linear root and joint offsets, slerped rotations).
 
     Library clips and queries come at 30, 60, 120 fps; Eq. 1 sums per frame, so both are brought to
     the library's rate first and a window covers the same time in every clip.
     """
-    times = np.asarray(times, dtype=float)
+    times = np.asarray(times, dtype=np.float64)
     last = motion.num_frames - 1
     x = np.clip(times * motion.fps, 0.0, last)
     lo = np.minimum(np.floor(x).astype(np.int64), max(last - 1, 0))
@@ -227,20 +228,20 @@ def root_child(skeleton: Skeleton) -> int | None:
     return int(kids[0]) if len(kids) == 1 else None
 
 
-def child_in_world(motion: Motion, frames: np.ndarray, child: int) -> tuple[np.ndarray, np.ndarray]:
+def child_in_world(motion: Motion, frames: IndexArray, child: int) -> tuple[FloatArray, FloatArray]:
     """World position (n, 3) and rotation (n, 4) of a child of the root on the given frames."""
     turn = motion.local_rot[frames, 0]
     world = motion.root_pos[frames] + quat.rotate(turn, motion.joint_offsets()[frames, child])
     return world, quat.mul(turn, motion.local_rot[frames, child])
 
 
-def _root_at(motion: Motion, pos: np.ndarray, rot: np.ndarray) -> np.ndarray:
+def _root_at(motion: Motion, pos: FloatArray, rot: FloatArray) -> BoolArray:
     """Per frame, whether the root stands at (pos, rot), to a micrometre and q or -q alike."""
     near = np.abs(motion.root_pos - pos).max(axis=1) <= 1e-6
     return near & (np.abs(motion.local_rot[:, 0] @ rot) >= 1.0 - 1e-12)
 
 
-def static_root(motion: Motion) -> tuple[np.ndarray, np.ndarray] | None:
+def static_root(motion: Motion) -> tuple[FloatArray, FloatArray] | None:
     """The root's one transform (position, rotation) when it never moves and has a single child:
     a ground bone that stays put while the hips' own channels carry the walk (Bandai Namco's
     joint_Root, in 68 of the 72 shared files); None otherwise."""
@@ -250,7 +251,7 @@ def static_root(motion: Motion) -> tuple[np.ndarray, np.ndarray] | None:
     return (pos, rot) if np.all(_root_at(motion, pos, rot)) else None
 
 
-def hold_root(motion: Motion, pos: np.ndarray, rot: np.ndarray) -> Motion:
+def hold_root(motion: Motion, pos: FloatArray, rot: FloatArray) -> Motion:
     """The same world motion with the root held at (pos, rot) on every frame, its single child's
     offset and rotation taking up the rest, as in a file with a static ground root (static_root).
     A reaction's sources put such a root wherever their own conventions do (the simulation moves it

@@ -47,10 +47,13 @@ import tomllib
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import cast
 
 import numpy as np
+import numpy.typing as npt
 
 from ..model import bvh
+from ..model.arrays import FloatArray, IndexArray
 from ..model.classes import CLASS_SLUGS
 from ..model.errors import BVHError, LibraryError, SkeletonError
 from ..model.roles import assign_roles
@@ -68,6 +71,8 @@ FEATURE_VERSION = 3
 CALIBRATION_JUMP = 20.0
 DEFAULT_FPS = 30.0
 DEFAULT_WINDOW = 8
+# file-hashes.json: clip path -> [size, mtime_ns, SHA-256 hex digest], as _file_digest stores them.
+FileMemo = dict[str, list[int | str]]
 
 
 @dataclass(frozen=True)
@@ -118,7 +123,7 @@ class ClipInfo:
     num_frames: int  # frames at the library's rate
     next: str | None = None
     library_fps: float = DEFAULT_FPS
-    roles: dict[str, str] = field(default_factory=dict)  # the roles its features were computed with
+    roles: dict[str, str] = field(default_factory=dict[str, str])  # the roles its features were computed with
 
     def source_frame(self, frame: int) -> float:
         """The BVH frame (fractional when resampled) of a library frame of this clip."""
@@ -141,8 +146,8 @@ class Library:
         clips: list[ClipInfo],
         settings: LibrarySettings,
         frames: FrameFeatures,
-        clip_index: np.ndarray,
-        frame_index: np.ndarray,
+        clip_index: IndexArray,
+        frame_index: IndexArray,
     ) -> None:
         self.clips = clips
         self.settings = settings
@@ -156,7 +161,9 @@ class Library:
         for clip in clips:
             clip.library_fps = settings.fps
         self.class_ranges: dict[str, tuple[int, int]] = {}
-        classes = np.array([CLASS_SLUGS.index(c.reaction_class) for c in clips])[self.clip_index] if clips else []
+        classes: IndexArray | list[int] = (
+            np.array([CLASS_SLUGS.index(c.reaction_class) for c in clips])[self.clip_index] if clips else []
+        )
         for k, slug in enumerate(CLASS_SLUGS):
             where = np.flatnonzero(np.asarray(classes) == k)
             if len(where):
@@ -219,8 +226,8 @@ class Library:
         """Flat frames [start, stop) as FrameFeatures (float64 copies)."""
         sl = slice(start, stop)
         return FrameFeatures(
-            self.pos_local[sl].astype(float), self.heading[sl].astype(float),
-            self.ground[sl].astype(float), self.rot[sl].astype(float),
+            self.pos_local[sl].astype(np.float64), self.heading[sl].astype(np.float64),
+            self.ground[sl].astype(np.float64), self.rot[sl].astype(np.float64),
         )  # fmt: skip
 
     def clip_motion(self, name: str, fps: float) -> Motion:
@@ -296,7 +303,7 @@ def read_manifest(source: str | Path) -> list[ClipEntry]:
         return _read_toml(toml_path)
     if not source.is_dir():
         raise LibraryError(f"no reaction library at {source}: neither a folder nor a {MANIFEST_NAME}")
-    entries = []
+    entries: list[ClipEntry] = []
     for sub in sorted(p for p in source.iterdir() if p.is_dir()):
         if sub.name.startswith("."):
             continue
@@ -316,29 +323,36 @@ def _read_toml(toml_path: Path) -> list[ClipEntry]:
         data = tomllib.loads(toml_path.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise LibraryError(f"{toml_path}: not a valid TOML file: {exc}") from None
-    clips = data.get("clip", [])
-    if not isinstance(clips, list) or not clips:
+    clips = _toml_list(data.get("clip", []))
+    if clips is None or not clips:
         raise LibraryError(f"{toml_path}: no [[clip]] tables")
-    entries, names = [], set()
+    entries: list[ClipEntry] = []
+    names: set[str] = set()
     for k, item in enumerate(clips, 1):
-        name = str(item.get("file", "")) if isinstance(item, dict) else ""
-        if not name:
+        table = _toml_table(item)
+        name = str(table.get("file", "")) if table is not None else ""
+        if table is None or not name:
             raise LibraryError(f"{toml_path}: [[clip]] number {k} has no 'file'")
-        unknown = set(item) - {"file", "class", "frames", "next", "roles"}
+        unknown = set(table) - {"file", "class", "frames", "next", "roles"}
         if unknown:
             raise _entry_error(name, f"unknown keys {', '.join(sorted(unknown))} in {toml_path}")
-        slug = item.get("class")
-        if slug not in CLASS_SLUGS:
+        slug = table.get("class")
+        if not isinstance(slug, str) or slug not in CLASS_SLUGS:
             raise _entry_error(name, f"unknown reaction class {slug!r}; classes are: {', '.join(CLASS_SLUGS)}")
-        frames = _frame_range(name, item.get("frames"))
+        frames = _frame_range(name, table.get("frames"))
         if name in names:
             raise _entry_error(name, f"listed twice in {toml_path}")
         names.add(name)
         path = Path(name) if Path(name).is_absolute() else toml_path.parent / name
-        overrides = item.get("roles", {})
-        if not isinstance(overrides, dict):
-            raise _entry_error(name, f"roles must be a table of role = joint name, got {overrides!r}")
-        entries.append(ClipEntry(name, path, slug, frames, item.get("next"), tuple(sorted(overrides.items()))))
+        given_roles = table.get("roles", {})
+        overrides = _toml_table(given_roles)
+        if overrides is None:
+            raise _entry_error(name, f"roles must be a table of role = joint name, got {given_roles!r}")
+        # Read as given: a `next` that names no clip (a non-string included) is refused below, a role
+        # whose value names no joint by assign_roles when the clip is compiled.
+        next_clip = cast(str | None, table.get("next"))
+        roles = cast(dict[str, str], overrides)
+        entries.append(ClipEntry(name, path, slug, frames, next_clip, tuple(sorted(roles.items()))))
     chains = _chain_entries(toml_path, data)
     for entry in entries:
         if entry.next is not None and entry.next not in names and entry.next not in chains:
@@ -353,28 +367,42 @@ def _frame_range(name: str, frames: object) -> tuple[int, int] | None:
     name the entry. (Past the file's end is checked when the file is read: used_frames.)"""
     if frames is None:
         return None
-    if not (isinstance(frames, list) and len(frames) == 2 and all(type(v) is int for v in frames)):
+    values = _toml_list(frames)
+    ints = [v for v in values if type(v) is int] if values is not None else []
+    if values is None or len(values) != 2 or len(ints) != 2:
         raise _entry_error(name, f"frames must be [start, end] integers, got {frames!r}")
-    if not 0 <= frames[0] < frames[1]:
-        raise _entry_error(name, f"frames [{frames[0]}, {frames[1]}] is not a range (need 0 <= start < end)")
-    return frames[0], frames[1]
+    start, end = ints
+    if not 0 <= start < end:
+        raise _entry_error(name, f"frames [{start}, {end}] is not a range (need 0 <= start < end)")
+    return start, end
 
 
-def _chain_entries(toml_path: Path, data: dict) -> dict[str, ChainEntry]:
+def _toml_list(value: object) -> list[object] | None:
+    """A TOML array (its items of any TOML type), None for any other value."""
+    return cast(list[object], value) if isinstance(value, list) else None
+
+
+def _toml_table(value: object) -> dict[str, object] | None:
+    """A TOML table (its keys strings, its values of any TOML type), None for any other value."""
+    return cast(dict[str, object], value) if isinstance(value, dict) else None
+
+
+def _chain_entries(toml_path: Path, data: dict[str, object]) -> dict[str, ChainEntry]:
     """The [[chain]] tables: clips played only after another (get-ups), name -> entry (an existing
     file, its optional frames checked as a clip's are)."""
-    chains = data.get("chain", [])
-    if not isinstance(chains, list):
+    chains = _toml_list(data.get("chain", []))
+    if chains is None:
         raise LibraryError(f"{toml_path}: 'chain' must be a list of [[chain]] tables")
-    out = {}
+    out: dict[str, ChainEntry] = {}
     for k, item in enumerate(chains, 1):
-        name = str(item.get("file", "")) if isinstance(item, dict) else ""
-        if not name:
+        table = _toml_table(item)
+        name = str(table.get("file", "")) if table is not None else ""
+        if table is None or not name:
             raise LibraryError(f"{toml_path}: [[chain]] number {k} has no 'file'")
-        unknown = set(item) - {"file", "frames"}
+        unknown = set(table) - {"file", "frames"}
         if unknown:
             raise _entry_error(name, f"unknown keys {', '.join(sorted(unknown))} in [[chain]] of {toml_path}")
-        frames = _frame_range(name, item.get("frames"))
+        frames = _frame_range(name, table.get("frames"))
         if name in out:
             raise _entry_error(name, f"listed twice as a [[chain]] in {toml_path}")
         path = Path(name) if Path(name).is_absolute() else toml_path.parent / name
@@ -415,7 +443,7 @@ def _read_bytes(name: str, path: Path) -> bytes:
         raise _entry_error(name, f"cannot read {path}: {exc}") from None
 
 
-def _file_digest(name: str, path: Path, memo: dict[str, list]) -> str:
+def _file_digest(name: str, path: Path, memo: FileMemo) -> str:
     """SHA-256 of a clip file's bytes; reused from `memo` while its size and mtime are unchanged,
     so checking an unchanged library touches no clip's bytes (only its file status)."""
     try:
@@ -427,7 +455,7 @@ def _file_digest(name: str, path: Path, memo: dict[str, list]) -> str:
     key = str(path.resolve())
     known = memo.get(key)
     if known is not None and known[0] == st.st_size and known[1] == st.st_mtime_ns:
-        return known[2]
+        return cast(str, known[2])  # the digest stored with that size and mtime
     digest = hashlib.sha256(_read_bytes(name, path)).hexdigest()
     memo[key] = [st.st_size, st.st_mtime_ns, digest]
     return digest
@@ -436,7 +464,7 @@ def _file_digest(name: str, path: Path, memo: dict[str, list]) -> str:
 def cache_key(
     entries: list[ClipEntry],
     settings: LibrarySettings,
-    memo: dict[str, list] | None = None,
+    memo: FileMemo | None = None,
     chains: list[ChainEntry] | dict[str, Path] | None = None,
 ) -> str:
     """SHA-256 of the feature version, settings, manifest and every clip file's bytes, the chained
@@ -457,7 +485,7 @@ def cache_key(
     return h.hexdigest()
 
 
-def take_start(pos: np.ndarray, fps: float) -> int:
+def take_start(pos: FloatArray, fps: float) -> int:
     """1 when some joint leaves frame 0 (pos (T, J, 3), metres) faster than CALIBRATION_JUMP, else 0:
     a first frame no body moves out of that fast is a calibration pose (CMU's converter T-pose, a
     capture's), not the take."""
@@ -539,7 +567,7 @@ def _save(library: Library, path: Path, key: str) -> None:
     )  # fmt: skip
 
 
-def _save_arrays(path: Path, **arrays: np.ndarray) -> None:
+def _save_arrays(path: Path, **arrays: npt.NDArray[np.generic]) -> None:
     """Write an .npz atomically (a reader never sees half a file)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp.npz")
@@ -597,8 +625,8 @@ def load_library(
     cache_dir = Path(cache_dir) if cache_dir is not None else default_cache_dir(source)
     memo_path = cache_dir / "file-hashes.json"
     try:
-        memo = json.loads(memo_path.read_text(encoding="utf-8"))
-        memo = memo if isinstance(memo, dict) else {}
+        stored = json.loads(memo_path.read_text(encoding="utf-8"))
+        memo = cast(FileMemo, stored) if isinstance(stored, dict) else {}
     except (OSError, ValueError):
         memo = {}
     before = json.dumps(memo, sort_keys=True)

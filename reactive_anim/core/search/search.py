@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..model.arrays import FloatArray
 from ..model.classes import CLASS_SLUGS
 from ..model.errors import LibraryError
 from .library import Library
@@ -122,8 +123,9 @@ def _match(library: Library, query: Query, best: Best, accepted: bool, scope: st
     frame = int(library.frame_index[start])
     # Placement: turn the clip's anchor heading onto the query's, then move its ground point there.
     yaw = float(query.features.heading[0]) - float(library.heading[start])
-    turned = yaw_rotate(yaw, np.append(library.ground[start].astype(float), 0.0))
-    offset = query.features.ground[0].astype(float) - turned[:2]
+    turned = yaw_rotate(yaw, np.append(library.ground[start].astype(np.float64), 0.0))
+    offset: FloatArray = query.features.ground[0].astype(np.float64) - turned[:2]
+    turn: complex = np.exp(1j * yaw)  # its angle: yaw wrapped to (-pi, pi]
     return Match(
         clip=clip.name,
         clip_index=clip_index,
@@ -132,7 +134,7 @@ def _match(library: Library, query: Query, best: Best, accepted: bool, scope: st
         source_frame=clip.source_frame(frame),
         cost=best.cost,
         accepted=accepted,
-        yaw=float(np.angle(np.exp(1j * yaw))),
+        yaw=float(np.angle(turn)),
         offset=(float(offset[0]), float(offset[1])),
         scope=scope,
         candidates_evaluated=best.evaluated,

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..model.arrays import AnyFloatArray, Float32Array, FloatArray, IndexArray
 from .window import NUM_JOINTS, Query
 
 # Lower bounds are shrunk, upper bounds widened, by a relative and an absolute margin against
@@ -59,12 +60,12 @@ NORM_MARGIN = 1e-6
 SUMMARY_CHUNK = 512
 
 
-def shrink(bound: np.ndarray) -> np.ndarray:
+def shrink(bound: Float32Array) -> Float32Array:
     """A float32 lower bound moved down by the margins."""
     return bound * np.float32(1.0 - BOUND_RELATIVE_MARGIN) - np.float32(BOUND_ABSOLUTE_MARGIN)
 
 
-def widen(bound: np.ndarray) -> np.ndarray:
+def widen(bound: Float32Array) -> Float32Array:
     """A float32 upper bound moved up by the margins."""
     return bound * np.float32(1.0 + BOUND_RELATIVE_MARGIN) + np.float32(BOUND_ABSOLUTE_MARGIN)
 
@@ -79,25 +80,25 @@ def half_sizes(window: int) -> tuple[int, int]:
     return first, window - first
 
 
-def window_summaries(aligned: np.ndarray, rot: np.ndarray) -> np.ndarray:
+def window_summaries(aligned: AnyFloatArray, rot: AnyFloatArray) -> FloatArray:
     """Summaries (SUMMARY_ROWS, n, 15) float64 of n windows from their aligned positions
     (n, W, 15, 3) and joint-local rotations (n, W, 15, 4). Rows first, so each row is a contiguous
     plane. A one-frame window's second half is its first (and weighs nothing, SummaryWeights)."""
     n, window, joints = aligned.shape[:3]
     k1, k2 = half_sizes(window)
-    aligned = np.asarray(aligned, float)
+    aligned = np.asarray(aligned, np.float64)
     first = aligned[:, :k1].sum(axis=1) * (1.0 / k1)
     second = aligned[:, k1:].sum(axis=1) * (1.0 / k2) if k2 else first
     # A rotation matrix is linear in the quaternion's outer product q q^T, so the mean matrix is
     # that map of the mean outer product.
-    q = np.asarray(rot, float)
+    q = np.asarray(rot, np.float64)
     q = q / np.sqrt(np.sum(q * q, axis=-1, keepdims=True))
     outer = q.transpose(0, 2, 3, 1) @ q.transpose(0, 2, 1, 3)  # (n, 15, 4, 4), summed over the frames
     matrices = outer.reshape(n, joints, 16) @ (_OUTER_TO_MATRIX / window)  # (n, 15, 9)
     return np.concatenate([first.transpose(2, 0, 1), second.transpose(2, 0, 1), matrices.transpose(2, 0, 1)])
 
 
-def _outer_to_matrix() -> np.ndarray:
+def _outer_to_matrix() -> FloatArray:
     """The (16, 9) map from q q^T (w, x, y, z; flattened) to the rotation matrix (row-major) of a
     unit quaternion: R00 = ww + xx - yy - zz, R01 = 2 (xy - wz), ..."""
     w, x, y, z = range(4)
@@ -122,14 +123,14 @@ class SummaryWeights:
     frames; 4 W w_theta for the rotation (times asin of the quarter angle's sine), or 2 W w_theta
     times the half angle's sine (looser, from asin(x) >= x); and the absolute rounding margin."""
 
-    halves: np.ndarray
-    rotation: np.ndarray
-    rotation_linear: np.ndarray
+    halves: Float32Array
+    rotation: Float32Array
+    rotation_linear: Float32Array
     margin: float
 
     @classmethod
-    def of(cls, window: int, wp: np.ndarray, wq: np.ndarray) -> SummaryWeights:
-        wp, wq = np.asarray(wp, float), np.asarray(wq, float)
+    def of(cls, window: int, wp: FloatArray, wq: FloatArray) -> SummaryWeights:
+        wp, wq = np.asarray(wp, np.float64), np.asarray(wq, np.float64)
         # Every summary number is a float32 rounding (relative 6e-8) of a value below 4 (metres or
         # matrix entries), so a half's mean-position norm is within 1e-6 of its float64 value:
         # 2e-5 per unit of weight and frame is 20 times that (the rotation norms' rounding is
@@ -151,7 +152,7 @@ class QuerySummary:
         self.rows = window_summaries(query.aligned[None], query.features.rot[None])[:, 0].astype(np.float32)
         self._tile = self.rows
 
-    def tiled(self, count: int) -> np.ndarray:
+    def tiled(self, count: int) -> Float32Array:
         """The rows repeated for `count` windows: (SUMMARY_ROWS, count * 15), kept and grown as needed."""
         have = self._tile.shape[1] // NUM_JOINTS
         if have < count:
@@ -159,26 +160,26 @@ class QuerySummary:
         return self._tile[:, : count * NUM_JOINTS]
 
 
-def summary_bounds(summaries: np.ndarray, cands: np.ndarray | slice, query: QuerySummary, weights: SummaryWeights,
-                   best: float = np.inf) -> np.ndarray:  # fmt: skip
+def summary_bounds(summaries: Float32Array, cands: IndexArray | slice, query: QuerySummary, weights: SummaryWeights,
+                   best: float = np.inf) -> Float32Array:  # fmt: skip
     """Lower bounds of Eq. 1 (section 1) for the windows `cands` (indices, or a slice) of
     `summaries` (SUMMARY_ROWS, C, 15): each half's mean position and the mean rotation. Bounds that
     a cheaper form already puts above `best` are left at that form (still lower bounds)."""
 
-    def bounds(part: np.ndarray | slice, count: int) -> np.ndarray:
+    def bounds(part: IndexArray | slice, count: int) -> Float32Array:
         diff = _gather(summaries, part).reshape(SUMMARY_ROWS, -1) - query.tiled(count)
         return _bound(diff, count, weights, best)
 
     return _in_chunks(bounds, cands)
 
 
-def summary_box_bounds(lo: np.ndarray, hi: np.ndarray, nodes: np.ndarray, query: QuerySummary,
-                       weights: SummaryWeights, best: float = np.inf) -> np.ndarray:  # fmt: skip
+def summary_box_bounds(lo: Float32Array, hi: Float32Array, nodes: IndexArray, query: QuerySummary,
+                       weights: SummaryWeights, best: float = np.inf) -> Float32Array:  # fmt: skip
     """Lower bounds of Eq. 1 for every window of the nodes whose summaries lie in the boxes lo..hi
     (SUMMARY_ROWS, n_nodes, 15): the distance from the query's summary to each box (`best` as in
     summary_bounds)."""
 
-    def bounds(part: np.ndarray | slice, count: int) -> np.ndarray:
+    def bounds(part: IndexArray | slice, count: int) -> Float32Array:
         target = query.tiled(count)
         below = _gather(lo, part).reshape(SUMMARY_ROWS, -1) - target
         above = target - _gather(hi, part).reshape(SUMMARY_ROWS, -1)
@@ -189,7 +190,7 @@ def summary_box_bounds(lo: np.ndarray, hi: np.ndarray, nodes: np.ndarray, query:
     return _in_chunks(bounds, nodes)
 
 
-def _in_chunks(bounds: Callable[[np.ndarray | slice, int], np.ndarray], items: np.ndarray | slice) -> np.ndarray:
+def _in_chunks(bounds: Callable[[IndexArray | slice, int], Float32Array], items: IndexArray | slice) -> Float32Array:
     """bounds(part, count) over SUMMARY_CHUNK items at a time."""
     if isinstance(items, slice):
         first, stop = items.start, items.stop
@@ -203,12 +204,12 @@ def _in_chunks(bounds: Callable[[np.ndarray | slice, int], np.ndarray], items: n
     return np.concatenate([bounds(part, count) for part, count in parts] or [np.zeros(0, np.float32)])
 
 
-def _gather(values: np.ndarray, part: np.ndarray | slice) -> np.ndarray:
+def _gather(values: Float32Array, part: IndexArray | slice) -> Float32Array:
     """The items `part` (indices, or a slice) of values (R, C, 15) along the second axis."""
     return values[:, part] if isinstance(part, slice) else np.take(values, part, axis=1)
 
 
-def _bound(diff: np.ndarray, count: int, weights: SummaryWeights, best: float) -> np.ndarray:
+def _bound(diff: Float32Array, count: int, weights: SummaryWeights, best: float) -> Float32Array:
     """Section 1's bound (count,) from the summary differences (SUMMARY_ROWS, count * 15) (squared
     in place), shrunk by the margins. Each joint's rotation angle 2 asin(x) is first bounded by 2 x
     (asin's first term); only the windows this leaves within `best` get the tight form."""
@@ -224,14 +225,14 @@ def _bound(diff: np.ndarray, count: int, weights: SummaryWeights, best: float) -
     return total
 
 
-def _norms(squared: np.ndarray, count: int) -> np.ndarray:
+def _norms(squared: Float32Array, count: int) -> Float32Array:
     """Euclidean norms (count, 15) from squared differences (r, count * 15), one row a component."""
     norm = squared.sum(axis=0)
     np.sqrt(norm, out=norm)
     return norm.reshape(count, NUM_JOINTS)
 
 
-def _rotation_sines(norm: np.ndarray) -> np.ndarray:
+def _rotation_sines(norm: Float32Array) -> Float32Array:
     """x = |mean R_a - mean R_b| / (2 sqrt 2) (in place), the sine of half the angle of a rotation
     difference that long: theta = 2 asin(x). x is first lowered by NORM_MARGIN against float32
     rounding (theta is steep in x near pi). The tight form takes the angle as 4 asin(y) with the
@@ -242,11 +243,11 @@ def _rotation_sines(norm: np.ndarray) -> np.ndarray:
     return np.clip(norm, 0.0, 1.0, out=norm)
 
 
-def _shrink_summary(total: np.ndarray, weights: SummaryWeights) -> np.ndarray:
+def _shrink_summary(total: Float32Array, weights: SummaryWeights) -> Float32Array:
     return total * np.float32(1.0 - BOUND_RELATIVE_MARGIN) - np.float32(weights.margin)
 
 
-def _asin_below(y: np.ndarray) -> np.ndarray:
+def _asin_below(y: Float32Array) -> Float32Array:
     """y + y^3 / 6 + 3 y^5 / 40 <= asin(y) on [0, 1] (float32, y's dtype)."""
     y2 = y * y
     series = y2 * np.float32(3.0 / 40.0)
@@ -265,7 +266,7 @@ class QueryArrays:
     """The query in the bounds' float32 layout: aligned positions (3, W, 15), rotations (4, W, 15),
     weights tiled over the window (W * 15,), its summary and the summary weights."""
 
-    def __init__(self, query: Query, wp: np.ndarray, wq: np.ndarray) -> None:
+    def __init__(self, query: Query, wp: FloatArray, wq: FloatArray) -> None:
         window = query.window
         self.window = window
         self.pos = np.ascontiguousarray(query.aligned.transpose(2, 0, 1), dtype=np.float32)
@@ -277,15 +278,15 @@ class QueryArrays:
 @functools.lru_cache(maxsize=8)
 def _query_weights(
     window: int, wp: tuple[float, ...], wq: tuple[float, ...]
-) -> tuple[np.ndarray, np.ndarray, SummaryWeights]:
+) -> tuple[Float32Array, Float32Array, SummaryWeights]:
     """Weights tiled over the window (W * 15,) float32, and the summary weights (kept per weights)."""
     tiled_wp, tiled_wq = (np.tile(np.asarray(w, np.float32), window) for w in (wp, wq))
     return tiled_wp, tiled_wq, SummaryWeights.of(window, np.asarray(wp), np.asarray(wq))
 
 
 def near_exact_interval(
-    planes: np.ndarray, placement: np.ndarray, starts: np.ndarray, q: QueryArrays
-) -> tuple[np.ndarray, np.ndarray]:
+    planes: AnyFloatArray, placement: Float32Array, starts: IndexArray, q: QueryArrays
+) -> tuple[Float32Array, Float32Array]:
     """Lower and upper bounds (n,) of Eq. 1 for the windows starting at the flat frames `starts`.
 
     planes (7, N, 15): the library's pos_local (x, y, z) and rot (w, x, y, z) as contiguous
@@ -342,7 +343,7 @@ def near_exact_interval(
     return shrink(positions + rotations[0]), widen(positions + rotations[1])
 
 
-def _half_angle(sine2: np.ndarray) -> np.ndarray:
+def _half_angle(sine2: Float32Array) -> Float32Array:
     """sin(a / 2) from sin^2(a) for a <= pi / 2 (float32, in place): s^2 / (2 + 2 sqrt(1 - s^2))."""
     root = np.subtract(np.float32(1.0), sine2)
     np.sqrt(root, out=root)

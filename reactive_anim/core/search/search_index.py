@@ -29,6 +29,7 @@ from typing import Protocol
 import numpy as np
 
 from ..model import quat
+from ..model.arrays import AnyFloatArray, Float32Array, FloatArray, IndexArray, Int32Array, IntArray
 from .search_bounds import (
     SUMMARY_ROWS,
     QueryArrays,
@@ -82,9 +83,9 @@ class IndexedFrames(Protocol):
     def frames(self) -> FrameFeatures: ...
 
     class_ranges: dict[str, tuple[int, int]]
-    clip_index: np.ndarray
-    frame_index: np.ndarray
-    clip_frames: np.ndarray
+    clip_index: Int32Array
+    frame_index: Int32Array
+    clip_frames: IntArray
 
 
 @dataclass
@@ -108,24 +109,24 @@ class SearchIndex:
 
     window: int
     frames: FrameFeatures
-    starts: np.ndarray
+    starts: IndexArray
     class_windows: dict[str, tuple[int, int]]
-    summaries: np.ndarray
-    planes: np.ndarray
-    placement: np.ndarray
-    firsts: list[np.ndarray]
+    summaries: Float32Array
+    planes: AnyFloatArray
+    placement: Float32Array
+    firsts: list[IntArray]
     class_tops: dict[str, tuple[int, int]]
-    summary_boxes: list[tuple[np.ndarray, np.ndarray]]
-    strategies: dict[str, str] = field(default_factory=dict)
+    summary_boxes: list[tuple[Float32Array, Float32Array]]
+    strategies: dict[str, str] = field(default_factory=dict[str, str])
     scan_limit: int = 0
-    limits: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # window_limits, per clip
+    limits: IntArray = field(default_factory=lambda: np.zeros(0, np.int64))  # window_limits, per clip
 
-    def tops(self, classes: list[str]) -> np.ndarray:
+    def tops(self, classes: list[str]) -> IndexArray:
         """Top-level nodes of the given classes (a class without a window long enough has none)."""
         ranges = [np.arange(*self.class_tops[slug]) for slug in classes if slug in self.class_tops]
         return np.concatenate(ranges) if ranges else np.zeros(0, np.int64)
 
-    def windows_of(self, classes: list[str]) -> np.ndarray:
+    def windows_of(self, classes: list[str]) -> IndexArray:
         """Indices into `starts` of the given classes' windows, in order."""
         ranges = [np.arange(*self.class_windows[slug]) for slug in classes if slug in self.class_windows]
         return np.sort(np.concatenate(ranges)) if ranges else np.zeros(0, np.int64)
@@ -151,7 +152,7 @@ class SearchIndex:
 # Build
 
 
-def window_limits(library: IndexedFrames) -> np.ndarray:
+def window_limits(library: IndexedFrames) -> IntArray:
     """Per clip, how many of its first frames its windows may span: all of them less a still tail.
 
     A clip that ends at rest (a step that recovers to a stand, a fall that ends lying) would
@@ -190,7 +191,9 @@ def build_index(
     """
     window, frames = library.window, library.frames
     limits = window_limits(library)
-    starts_by_class, class_windows, count = [], {}, 0
+    starts_by_class: list[IndexArray] = []
+    class_windows: dict[str, tuple[int, int]] = {}
+    count = 0
     for slug, (a, b) in library.class_ranges.items():
         frame = library.frame_index[a:b]
         length = limits[library.clip_index[a:b]]
@@ -205,10 +208,13 @@ def build_index(
     chunk = 4096
     for first in range(0, len(starts), chunk):
         rows = starts[first : first + chunk, None] + np.arange(window)
-        aligned = aligned_window(*(a[rows].astype(float) for a in (frames.pos_local, frames.heading, frames.ground)))
+        aligned = aligned_window(
+            *(a[rows].astype(np.float64) for a in (frames.pos_local, frames.heading, frames.ground))
+        )
         summaries[:, first : first + chunk] = window_summaries(aligned, frames.rot[rows])
     # The tree: blocks per class, then groups of nodes; per node the box of its windows' summaries.
-    firsts, class_nodes = [], class_windows
+    firsts: list[IntArray] = []
+    class_nodes = class_windows
     for size in [block_size] + [fanout] * (levels - 1):
         first, class_nodes = _group(class_nodes, size)
         firsts.append(first)
@@ -230,9 +236,10 @@ def build_index(
     return index
 
 
-def _group(class_ranges: dict[str, tuple[int, int]], size: int) -> tuple[np.ndarray, dict[str, tuple[int, int]]]:
+def _group(class_ranges: dict[str, tuple[int, int]], size: int) -> tuple[IntArray, dict[str, tuple[int, int]]]:
     """Cut each class's range of items into groups of `size`: the cuts and each class's groups."""
-    first, ranges = [0], {}
+    first = [0]
+    ranges: dict[str, tuple[int, int]] = {}
     for slug, (a, b) in class_ranges.items():
         g0 = len(first) - 1
         first.extend(list(range(a + size, b, size)) + [b])
@@ -240,7 +247,7 @@ def _group(class_ranges: dict[str, tuple[int, int]], size: int) -> tuple[np.ndar
     return np.asarray(first, np.int64), ranges
 
 
-def _node_boxes(rows: np.ndarray, firsts: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray]]:
+def _node_boxes(rows: Float32Array, firsts: list[IntArray]) -> list[tuple[Float32Array, Float32Array]]:
     """Per level, the low and high corners (r, n_k, 15) of each node's `rows` (r, C, 15)."""
     if rows.shape[1] == 0:
         empty = [np.zeros((rows.shape[0], len(f) - 1, rows.shape[2]), rows.dtype) for f in firsts]
@@ -273,8 +280,8 @@ def find_best(
     index: SearchIndex,
     query: Query,
     classes: list[str],
-    wp: np.ndarray,
-    wq: np.ndarray,
+    wp: FloatArray,
+    wq: FloatArray,
     *,
     strategy: str | None = None,
 ) -> Best:
@@ -297,16 +304,16 @@ class _Candidates:
     windows straight to their exact cost, which gives a first best); `finish` computes the exact
     cost of those still in and returns the best."""
 
-    def __init__(self, index: SearchIndex, query: Query, wp: np.ndarray, wq: np.ndarray) -> None:
+    def __init__(self, index: SearchIndex, query: Query, wp: FloatArray, wq: FloatArray) -> None:
         self.index, self.query = index, query
         self.wp, self.wq = wp, wq
         self.arrays = QueryArrays(query, wp, wq)
         self.best = np.float32(np.inf)  # the lowest upper end of a window's cost so far
-        self.kept: list[np.ndarray] = []  # windows still in, and the lower ends of their costs
-        self.kept_low: list[np.ndarray] = []
-        self.exact: list[tuple[np.ndarray, np.ndarray]] = []  # (starts, exact costs) computed so far
+        self.kept: list[IndexArray] = []  # windows still in, and the lower ends of their costs
+        self.kept_low: list[Float32Array] = []
+        self.exact: list[tuple[IndexArray, FloatArray]] = []  # (starts, exact costs) computed so far
 
-    def offer(self, cands: np.ndarray) -> None:
+    def offer(self, cands: IndexArray) -> None:
         """Rule out what the summary bound can, then refine the rest cheapest first."""
         if len(cands) == 0:
             return
@@ -316,7 +323,7 @@ class _Candidates:
         order = np.argsort(bound[keep], kind="stable")
         self.refine(cands[keep][order], bound[keep][order])
 
-    def refine(self, cands: np.ndarray, full: np.ndarray) -> None:
+    def refine(self, cands: IndexArray, full: Float32Array) -> None:
         """Windows sorted by their full summary bounds `full`: the first ones' exact costs if none is
         known yet, then the near-exact interval of those whose bound is within the best."""
         if not self.exact:
@@ -334,7 +341,7 @@ class _Candidates:
             self.kept.append(chunk[keep])
             self.kept_low.append(low[keep])
 
-    def evaluate(self, cands: np.ndarray) -> None:
+    def evaluate(self, cands: IndexArray) -> None:
         """The exact float64 costs of the windows `cands`; the best drops to the lowest of them."""
         if len(cands) == 0:
             return
@@ -363,7 +370,7 @@ def _float32_at_least(value: float) -> np.float32:
     return rounded if rounded >= value else np.nextafter(rounded, np.float32(np.inf))
 
 
-def _scan(candidates: _Candidates, cands: np.ndarray) -> None:
+def _scan(candidates: _Candidates, cands: IndexArray) -> None:
     """The plain pass: every window's summary bound at once, then the exact and near-exact stages
     cheapest first."""
     if len(cands) == 0:
@@ -383,7 +390,7 @@ class _Walk:
         self.candidates = candidates
         self.index = candidates.index
 
-    def bounds(self, level: int, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def bounds(self, level: int, nodes: IndexArray) -> tuple[IndexArray, Float32Array]:
         """The nodes whose summary box may hold a window within the best, and their bounds."""
         lo, hi = self.index.summary_boxes[level]
         arrays = self.candidates.arrays
@@ -391,7 +398,7 @@ class _Walk:
         keep = bound <= self.candidates.best
         return nodes[keep], bound[keep]
 
-    def visit(self, level: int, nodes: np.ndarray) -> None:
+    def visit(self, level: int, nodes: IndexArray) -> None:
         """Nodes of one level, cheapest bound first, in growing batches; skip what cannot win."""
         if len(nodes) == 0:
             return
@@ -412,7 +419,7 @@ class _Walk:
                 self.visit(level - 1, children)
 
 
-def _ranges(first: np.ndarray, stop: np.ndarray) -> np.ndarray:
+def _ranges(first: IntArray, stop: IntArray) -> IndexArray:
     """Concatenated aranges [first[k], stop[k]) without a Python loop."""
     lengths = stop - first
     total = int(lengths.sum())
@@ -439,7 +446,7 @@ def choose_strategies(index: SearchIndex, *, probes: int = PROBES, runs: int = P
         queries = _probe_queries(index, index.windows_of(classes), probes)
         if not queries:
             continue
-        times = {}
+        times: dict[str, float] = {}
         for strategy in STRATEGIES:
             runs_s = [[_timed(index, q, classes, strategy) for _ in range(runs)] for q in queries]
             times[strategy] = float(np.median([min(r) for r in runs_s]))
@@ -457,25 +464,25 @@ def _timed(index: SearchIndex, query: Query, classes: list[str], strategy: str) 
     return time.perf_counter() - start
 
 
-def _probe_queries(index: SearchIndex, cands: np.ndarray, count: int) -> list[Query]:
+def _probe_queries(index: SearchIndex, cands: IndexArray, count: int) -> list[Query]:
     """`count` windows spread over `cands`, each joint turned 10 degrees about a random axis and
     moved 10 cm in a random direction (seeded: the same probes every build)."""
     if len(cands) == 0:
         return []
     rng = np.random.default_rng(2009)
     frames, window = index.frames, index.window
-    queries = []
+    queries: list[Query] = []
     for k in np.linspace(0, len(cands) - 1, count).astype(int):
-        rows = np.arange(index.starts[cands[k]], index.starts[cands[k]] + window)
-        move = rng.normal(size=frames.pos_local[rows].shape)
+        rows: IndexArray = np.arange(index.starts[cands[k]], index.starts[cands[k]] + window)
+        move: FloatArray = rng.normal(size=frames.pos_local[rows].shape)
         move *= 0.1 / np.linalg.norm(move, axis=-1, keepdims=True)
         axis = rng.normal(size=move.shape)
         axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
         half = np.radians(10.0) / 2
         turn = np.concatenate([np.full(move.shape[:-1] + (1,), np.cos(half)), np.sin(half) * axis], axis=-1)
-        rot = quat.mul(frames.rot[rows].astype(float), turn)
+        rot = quat.mul(frames.rot[rows].astype(np.float64), turn)
         rot *= np.where(rot[..., :1] < 0, -1.0, 1.0)
-        feats = FrameFeatures(frames.pos_local[rows] + move, frames.heading[rows].astype(float),
-                              frames.ground[rows].astype(float), rot)  # fmt: skip
+        feats = FrameFeatures(frames.pos_local[rows] + move, frames.heading[rows].astype(np.float64),
+                              frames.ground[rows].astype(np.float64), rot)  # fmt: skip
         queries.append(Query(feats))
     return queries

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..model.arrays import AnyFloatArray, FloatArray, IndexArray
 from ..model.errors import LibraryError
 from ..model.roles import assign_roles
 from ..model.skeleton import Motion, resample
@@ -50,7 +51,7 @@ SEARCH_ROLES: tuple[str, ...] = (
 NUM_JOINTS = len(SEARCH_ROLES)
 
 
-def joint_weights(weights: dict[str, float]) -> np.ndarray:
+def joint_weights(weights: dict[str, float]) -> FloatArray:
     """Per-joint weights (15,) in SEARCH_ROLES order from a Table 2 row -> weight mapping."""
     rows = [role.removesuffix("_l").removesuffix("_r") for role in SEARCH_ROLES]
     missing = sorted({row for row in rows if row not in weights})
@@ -67,12 +68,13 @@ class FrameFeatures:
       the origin, heading along +X, Z up, metres).
     heading: (T,) pelvis heading about Z, radians.  ground: (T, 2) pelvis ground point (x, y).
     rot: (T, 15, 4) joint-local rotations (w, x, y, z), w >= 0.
+    float64 as computed; a library's are float32 views of its arrays (Library.frames).
     """
 
-    pos_local: np.ndarray
-    heading: np.ndarray
-    ground: np.ndarray
-    rot: np.ndarray
+    pos_local: AnyFloatArray
+    heading: AnyFloatArray
+    ground: AnyFloatArray
+    rot: AnyFloatArray
 
     @property
     def num_frames(self) -> int:
@@ -82,12 +84,12 @@ class FrameFeatures:
         """The features of some of the frames (a stride, a window)."""
         return FrameFeatures(self.pos_local[frames], self.heading[frames], self.ground[frames], self.rot[frames])
 
-    def world_positions(self) -> np.ndarray:
+    def world_positions(self) -> FloatArray:
         """Joint positions in world space (T, 15, 3), rebuilt from the heading frames."""
         return yaw_rotate(self.heading[:, None], self.pos_local) + _ground3(self.ground)[:, None]
 
 
-def yaw_rotate(angle: np.ndarray | float, v: np.ndarray) -> np.ndarray:
+def yaw_rotate(angle: AnyFloatArray | float, v: AnyFloatArray) -> FloatArray:
     """Rotate vectors (..., 3) about Z by `angle` (broadcast against (...))."""
     c, s = np.cos(angle), np.sin(angle)
     out = np.empty(np.broadcast_shapes(np.shape(angle) + (3,), v.shape))
@@ -97,7 +99,7 @@ def yaw_rotate(angle: np.ndarray | float, v: np.ndarray) -> np.ndarray:
     return out
 
 
-def _ground3(ground: np.ndarray) -> np.ndarray:
+def _ground3(ground: AnyFloatArray) -> FloatArray:
     return np.concatenate([ground, np.zeros(ground.shape[:-1] + (1,))], axis=-1)
 
 
@@ -109,7 +111,7 @@ def rest_heading(motion: Motion, roles: dict[str, str]) -> float:
     """
     sk = motion.skeleton
     rest = sk.rest_positions()
-    left = rest[sk.index(roles["hip_l"])] - rest[sk.index(roles["hip_r"])]
+    left: FloatArray = rest[sk.index(roles["hip_l"])] - rest[sk.index(roles["hip_r"])]
     forward = np.cross(left, [0.0, 0.0, 1.0])
     if np.hypot(forward[0], forward[1]) < 1e-9:
         return 0.0
@@ -132,7 +134,7 @@ def frame_features(motion: Motion, roles: dict[str, str]) -> FrameFeatures:
     return FrameFeatures(pos_local, heading, ground, local)
 
 
-def aligned_window(pos_local: np.ndarray, heading: np.ndarray, ground: np.ndarray) -> np.ndarray:
+def aligned_window(pos_local: FloatArray, heading: FloatArray, ground: FloatArray) -> FloatArray:
     """Window positions in the heading frame of its first frame: (..., W, 15, 3) from
     pos_local (..., W, 15, 3), heading (..., W), ground (..., W, 2)."""
     rel = heading - heading[..., :1]
@@ -150,11 +152,13 @@ class Query:
     """A query window of W frames at the library's rate: FrameFeatures plus its aligned positions."""
 
     features: FrameFeatures
-    aligned: np.ndarray = field(init=False)
+    aligned: FloatArray = field(init=False)
 
     def __post_init__(self) -> None:
         f = self.features
-        self.aligned = aligned_window(f.pos_local.astype(float), f.heading.astype(float), f.ground.astype(float))
+        self.aligned = aligned_window(
+            f.pos_local.astype(np.float64), f.heading.astype(np.float64), f.ground.astype(np.float64)
+        )
 
     @property
     def window(self) -> int:
@@ -179,7 +183,7 @@ def query_from_motion(
     return Query(frame_features(resample(motion, times), roles))
 
 
-def window_costs(frames: FrameFeatures, starts: np.ndarray, query: Query, wp: np.ndarray, wq: np.ndarray) -> np.ndarray:
+def window_costs(frames: FrameFeatures, starts: IndexArray, query: Query, wp: FloatArray, wq: FloatArray) -> FloatArray:
     """Eq. 1 (float64, (n,)) between the query and the windows of `frames` starting at `starts` (n,).
 
     wp, wq: per-joint weights (15,) from joint_weights."""
@@ -192,25 +196,27 @@ class Windows:
     against the same windows without aligning them again. aligned (n, W, 15, 3); rot (4, n, W, 15),
     the local rotations as component planes."""
 
-    aligned: np.ndarray
-    rot: np.ndarray
+    aligned: FloatArray
+    rot: FloatArray
 
     @classmethod
-    def of(cls, frames: FrameFeatures, starts: np.ndarray, window: int) -> Windows:
+    def of(cls, frames: FrameFeatures, starts: IndexArray, window: int) -> Windows:
         """The `window`-frame windows of `frames` starting at `starts` (n,)."""
         index = np.asarray(starts)[:, None] + np.arange(window)
-        aligned = aligned_window(*(a[index].astype(float) for a in (frames.pos_local, frames.heading, frames.ground)))
-        return cls(aligned, frames.rot[index].astype(float).transpose(3, 0, 1, 2))
+        aligned = aligned_window(
+            *(a[index].astype(np.float64) for a in (frames.pos_local, frames.heading, frames.ground))
+        )
+        return cls(aligned, frames.rot[index].astype(np.float64).transpose(3, 0, 1, 2))
 
-    def costs(self, query: Query, wp: np.ndarray, wq: np.ndarray, count: int | None = None) -> np.ndarray:
+    def costs(self, query: Query, wp: FloatArray, wq: FloatArray, count: int | None = None) -> FloatArray:
         """Eq. 1 of the first `count` windows (default all) against `query`."""
         dist = np.sqrt(np.sum((self.aligned[:count] - query.aligned) ** 2, axis=-1))  # (n, W, 15)
-        angle = rotation_angles(query.features.rot.astype(float).transpose(2, 0, 1), self.rot[:, :count])
+        angle = rotation_angles(query.features.rot.astype(np.float64).transpose(2, 0, 1), self.rot[:, :count])
         # Row-wise sums (not BLAS), so identical windows get bit-identical costs and ties stay ties.
         return ((dist * wp).sum(axis=-1) + (angle * wq).sum(axis=-1)).sum(axis=1)
 
 
-def rotation_angles(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def rotation_angles(a: FloatArray, b: FloatArray) -> FloatArray:
     """Rotation angle of a^-1 b for quaternions given as component planes (w, x, y, z, ...):
     2 atan2(|vector part|, |scalar part|), as quat.angle_between but without its stacking, which
     costs several times more on the few windows the search evaluates exactly."""

@@ -29,12 +29,13 @@ from __future__ import annotations
 import numpy as np
 
 from ..model import quat
+from ..model.arrays import FloatArray
 from ..model.errors import SkeletonError
 from ..model.skeleton import Motion, child_in_world, root_child
 from ..search.window import yaw_rotate
 
 
-def fade_weights(frames: int) -> np.ndarray:
+def fade_weights(frames: int) -> FloatArray:
     """(frames,) weights from 0 (first frame) to 1 (last) with zero slope and curvature at both ends."""
     if frames < 2:
         return np.ones(max(frames, 0))
@@ -42,7 +43,7 @@ def fade_weights(frames: int) -> np.ndarray:
     return s * s * s * (s * (6.0 * s - 15.0) + 10.0)
 
 
-def blend(a: Motion, b: Motion, weights: np.ndarray) -> Motion:
+def blend(a: Motion, b: Motion, weights: FloatArray) -> Motion:
     """Per frame, `a` faded into `b` by weights (T,) in [0, 1]: root and joint offsets lerped, joint
     rotations slerped (one arc per joint, see the module docstring), a root's single child in world
     space. Weight 0 gives `a`'s frame exactly, 1 gives `b`'s."""
@@ -52,7 +53,7 @@ def blend(a: Motion, b: Motion, weights: np.ndarray) -> Motion:
         raise SkeletonError(
             f"blend needs equal lengths: {a.num_frames} and {b.num_frames} frames, {len(weights)} weights"
         )
-    w = np.asarray(weights, dtype=float)
+    w = np.asarray(weights, dtype=np.float64)
     root = a.root_pos + (b.root_pos - a.root_pos) * w[:, None]
     arcs = _continuous_arcs(a.local_rot, b.local_rot, w)
     rot = quat.slerp(a.local_rot, arcs, np.broadcast_to(w[:, None], a.local_rot.shape[:2]), shortest=False)
@@ -68,7 +69,7 @@ def blend(a: Motion, b: Motion, weights: np.ndarray) -> Motion:
     return Motion(a.skeleton, a.fps, root, rot, local_pos)
 
 
-def blend_travel(a: Motion, b: Motion, weights: np.ndarray, pelvis: int) -> tuple[Motion, tuple[float, float]]:
+def blend_travel(a: Motion, b: Motion, weights: FloatArray, pelvis: int) -> tuple[Motion, tuple[float, float]]:
     """`blend`, with the pelvis' travel over the floor faded by velocity rather than by position, and
     the ground offset (x, y) by which `b` must be moved to carry on from the fade's last frame.
 
@@ -82,7 +83,7 @@ def blend_travel(a: Motion, b: Motion, weights: np.ndarray, pelvis: int) -> tupl
     used for C..F: there the body would carry the hit's pace further than the clip's legs step,
     and the feet skid."""
     out = blend(a, b, weights)
-    w = np.asarray(weights, dtype=float)
+    w = np.asarray(weights, dtype=np.float64)
     if len(w) < 2:
         return out, (0.0, 0.0)
     pa, pb, po = (m.global_positions()[:, pelvis, :2] for m in (a, b, out))
@@ -95,7 +96,7 @@ def blend_travel(a: Motion, b: Motion, weights: np.ndarray, pelvis: int) -> tupl
     return Motion(out.skeleton, out.fps, root, out.local_rot, out.local_pos), (float(end[0]), float(end[1]))
 
 
-def _continuous_arcs(a: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.ndarray:
+def _continuous_arcs(a: FloatArray, b: FloatArray, w: FloatArray) -> FloatArray:
     """`b` (T, ..., 4) signed so that slerping from `a` takes, per joint, the shorter arc on the
     frame whose weight is nearest 1/2 and an arc continuous in time from there: the relative
     rotation a^-1 b keeps its sign from one frame to the next."""
@@ -109,8 +110,8 @@ def _continuous_arcs(a: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 
 def _single_child_in_world(
-    a: Motion, b: Motion, w: np.ndarray, root: np.ndarray, rot: np.ndarray, offsets: np.ndarray | None
-) -> np.ndarray | None:
+    a: Motion, b: Motion, w: FloatArray, root: FloatArray, rot: FloatArray, offsets: FloatArray | None
+) -> FloatArray | None:
     """The root's only child faded in world space (see the module docstring), in place on root and
     rot, on the frames strictly between the sources (weights 0 and 1 keep a source's frame).
     Returns the offsets: where either source animates the child's offset, it takes up the
@@ -141,7 +142,7 @@ def place(motion: Motion, yaw: float, offset: tuple[float, float]) -> Motion:
     ground by `offset` (x, y): how a matched clip is put where the character is (search.Match)."""
     turn = quat.from_axis_angle(np.array([0.0, 0.0, 1.0]), np.float64(yaw))
     root = yaw_rotate(yaw, motion.root_pos)
-    root[:, :2] += np.asarray(offset, dtype=float)
+    root[:, :2] += np.asarray(offset, dtype=np.float64)
     rot = motion.local_rot.copy()
     rot[:, 0] = quat.mul(np.broadcast_to(turn, rot[:, 0].shape), rot[:, 0])
     return Motion(motion.skeleton, motion.fps, root, rot, None if motion.local_pos is None else motion.local_pos.copy())

@@ -22,6 +22,9 @@ from ..search.library import Library, take_start
 from ..search.window import Query, query_from_motion
 from .retarget import Pose, RetargetMap, lowest_foot_point, reference_pose, retarget, retarget_map
 
+# A skeleton as a dictionary key (_key): its joint names and its rest offsets' bytes.
+SkeletonKey = tuple[tuple[str, ...], bytes]
+
 
 @dataclass
 class Casting:
@@ -33,9 +36,12 @@ class Casting:
     roles: dict[str, str]
     library: Library
     reference: Motion  # the library's first clip: its skeleton is the one the search compares on
-    _poses: dict[tuple, Pose] = field(default_factory=dict)  # skeleton (_key) -> the pose it is lined up at
-    _maps: dict[tuple, RetargetMap] = field(default_factory=dict)
-    _clips: dict[tuple[str, float], Motion] = field(default_factory=dict)
+    # skeleton (_key) -> the pose it is lined up at
+    _poses: dict[SkeletonKey, Pose] = field(default_factory=dict[SkeletonKey, Pose])
+    _maps: dict[tuple[SkeletonKey, SkeletonKey], RetargetMap] = field(
+        default_factory=dict[tuple[SkeletonKey, SkeletonKey], RetargetMap]
+    )
+    _clips: dict[tuple[str, float], Motion] = field(default_factory=dict[tuple[str, float], Motion])
 
     @classmethod
     def between(cls, character: Motion, roles: dict[str, str], library: Library) -> Casting:
@@ -114,6 +120,6 @@ def same_skeleton(a: Skeleton, b: Skeleton) -> bool:
     return a.names == b.names and np.array_equal(a.parents, b.parents) and np.allclose(a.offsets, b.offsets, atol=1e-4)
 
 
-def _key(skeleton: Skeleton) -> tuple:
+def _key(skeleton: Skeleton) -> SkeletonKey:
     """A skeleton as a dictionary key: its joints and rest offsets (to 0.1 mm)."""
     return tuple(skeleton.names), np.round(skeleton.offsets, 4).tobytes()

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..model.arrays import BoolArray, FloatArray
 from ..model.skeleton import Motion, Skeleton, root_child
 from .retarget import foot_points, joint_path, leg_length, local_rotations, lowest_foot_point, two_bone_ik
 
@@ -84,7 +85,7 @@ def _hold(
     frames: tuple[int, int, int],
     fades: list[tuple[int, int]],
     floor: float,
-) -> tuple[np.ndarray, bool, list[tuple[list[int], np.ndarray]]] | None:
+) -> tuple[FloatArray, bool, list[tuple[list[int], BoolArray]]] | None:
     """The global rotations over first - 1..end - 1 with the feet held and feet and hands out of the
     floor, whether a foot is still held at end - 1, and per limb turned its joints and the rows
     it turned; None where nothing moves."""
@@ -99,7 +100,7 @@ def _hold(
     for a, b in fades:
         fading[max(a - first, 0) : max(b - first, 0)] = True
     leg = leg_length(skeleton, roles)
-    moved: list[tuple[list[int], np.ndarray]] = []
+    moved: list[tuple[list[int], BoolArray]] = []
     still_held = False
     reaction = np.zeros(len(pos), dtype=bool)  # the frames lifted out of the floor: first..last - 1
     reaction[1 : last - first + 1] = True  # (after the reaction the motion is its own)
@@ -117,7 +118,7 @@ def _hold(
         goal[:, 2] += lift
         chain = (joint[f"hip_{side}"], joint[f"knee_{side}"], ankle)
         goal = _eased_reach(goal, *(pos[:, j] for j in chain))
-        two_bone_ik(skeleton, pos, glob, chain, goal, moves.astype(float), left, forward)
+        two_bone_ik(skeleton, pos, glob, chain, goal, moves.astype(np.float64), left, forward)
         moved.append((joint_path(skeleton, chain[0], ankle), moves))
     moved += _hands_out_of_the_floor(skeleton, pos, glob, joint, (left, forward), reaction, floor)
     return (glob, still_held, moved) if moved else None
@@ -125,13 +126,13 @@ def _hold(
 
 def _hands_out_of_the_floor(
     skeleton: Skeleton,
-    pos: np.ndarray,
-    glob: np.ndarray,
+    pos: FloatArray,
+    glob: FloatArray,
     joint: dict[str, int],
-    axes: tuple[np.ndarray, np.ndarray],
-    rows: np.ndarray,
+    axes: tuple[FloatArray, FloatArray],
+    rows: BoolArray,
     floor: float,
-) -> list[tuple[list[int], np.ndarray]]:
+) -> list[tuple[list[int], BoolArray]]:
     """Per arm whose hand (the wrist, the joints below it and their end sites) a fade or a cast clip
     put through the floor on `rows`, its joints and the rows turned (in place on pos and glob): the hand lifted
     straight up onto the floor by the arm's two-bone IK, as a foot is (an elbow bends the other way
@@ -139,7 +140,7 @@ def _hands_out_of_the_floor(
     already has under the floor at the hit (row 0) keeps that depth, so nothing jumps there. axes:
     the body's left and forward per frame."""
     left, forward = axes
-    moved = []
+    moved: list[tuple[list[int], BoolArray]] = []
     for side in SIDES:
         chain = (joint[f"shoulder_{side}"], joint[f"elbow_{side}"], joint[f"wrist_{side}"])
         wrist = chain[2]
@@ -150,12 +151,12 @@ def _hands_out_of_the_floor(
             goal = pos[:, wrist].copy()
             goal[:, 2] += need
             goal = _eased_reach(goal, *(pos[:, j] for j in chain))
-            two_bone_ik(skeleton, pos, glob, chain, goal, turned.astype(float), -left, -forward)
+            two_bone_ik(skeleton, pos, glob, chain, goal, turned.astype(np.float64), -left, -forward)
             moved.append((joint_path(skeleton, chain[0], wrist), turned))
     return moved
 
 
-def _eased_reach(goal: np.ndarray, hip: np.ndarray, knee: np.ndarray, ankle: np.ndarray) -> np.ndarray:
+def _eased_reach(goal: FloatArray, hip: FloatArray, knee: FloatArray, ankle: FloatArray) -> FloatArray:
     """The goals (T, 3) pulled in where they would straighten the limb past SOFT_REACH of its length
     (or past the motion's own stretch, where that is more): the last few per cent of a knee's (an
     elbow's) extension turn it fast for a small move of the foot, which shows as a kick of the knee;
@@ -170,7 +171,7 @@ def _eased_reach(goal: np.ndarray, hip: np.ndarray, knee: np.ndarray, ankle: np.
     return hip + (goal - hip) * (eased / np.maximum(distance, 1e-9))[:, None]
 
 
-def _with_limbs(motion: Motion, glob: np.ndarray, limbs: list[tuple[list[int], np.ndarray]], first: int) -> Motion:
+def _with_limbs(motion: Motion, glob: FloatArray, limbs: list[tuple[list[int], BoolArray]], first: int) -> Motion:
     """`motion` with each limb's local rotations taken from `glob` (rows from frame first - 1) on
     the rows it was turned (the others stay the input's, bit for bit), each on the same side of
     the quaternion sphere as the rotation it replaces."""
@@ -184,7 +185,7 @@ def _with_limbs(motion: Motion, glob: np.ndarray, limbs: list[tuple[list[int], n
                   local_pos=motion.local_pos)  # fmt: skip
 
 
-def _sliding(points: np.ndarray, floor: float, fps: float) -> tuple[np.ndarray, np.ndarray]:
+def _sliding(points: FloatArray, floor: float, fps: float) -> tuple[FloatArray, FloatArray]:
     """From a foot's points (T, P, 3), per frame from the second: how much it is on the floor (0..1,
     by height: CONTACT_HEIGHT) and the slide to take back (T - 1, 2), counted as much as the foot
     stands: on the floor and slow (a swing foot skimming the floor is fast). Ramps rather than
@@ -203,7 +204,7 @@ def _sliding(points: np.ndarray, floor: float, fps: float) -> tuple[np.ndarray, 
     return firm[1:].max(axis=1), weight.max(axis=1)[:, None] * slide
 
 
-def _offsets(down: np.ndarray, slide: np.ndarray, fps: float, most: float) -> np.ndarray:
+def _offsets(down: FloatArray, slide: FloatArray, fps: float, most: float) -> FloatArray:
     """(T, 2) the ankle's ground offset per frame (row 0, the frame before the range, is zero): the
     slide taken back, at most `most` (m; beyond, the foot slides: MAX_OFFSET); let go in the air
     (1 - down) at CATCH_UP_RATE, fast while it is large and slowing as it shrinks, so the foot
@@ -243,12 +244,12 @@ def lift_onto_floor(motion: Motion, frames: tuple[int, int], floor: float) -> Mo
     return Motion(motion.skeleton, motion.fps, root, motion.local_rot, motion.local_pos)
 
 
-def _box(values: np.ndarray, half: int) -> np.ndarray:
+def _box(values: FloatArray, half: int) -> FloatArray:
     """The running mean over 2 half + 1 frames, the ends held."""
     return np.convolve(np.pad(values, half, mode="edge"), np.ones(2 * half + 1) / (2 * half + 1), mode="valid")
 
 
-def _lowest_points(motion: Motion) -> np.ndarray:
+def _lowest_points(motion: Motion) -> FloatArray:
     """(T,) the height of the lowest joint or end site per frame, a ground root bone left out."""
     pos, rot = motion.global_transforms()
     return lowest_foot_point(motion.skeleton, root_child(motion.skeleton) or 0, pos, rot)

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model import quat
+from ..model.arrays import BoolArray, FloatArray, IndexArray
 from ..model.errors import SkeletonError
 from ..model.roles import SIDES, assign_roles
 from ..model.skeleton import Motion, Skeleton, forward_kinematics
@@ -73,16 +74,16 @@ class RetargetMap:
     source: Skeleton
     target: Skeleton
     roles: list[str]  # the roles both skeletons have, in the target's joint order
-    source_joints: np.ndarray  # (R,)
-    target_joints: np.ndarray  # (R,)
-    source_child: np.ndarray  # (R,) joint the source bone points to (-1: none)
-    target_child: np.ndarray  # (R,) likewise in the target
-    align: np.ndarray  # (R, 4) Q: target rest frame -> source rest frame
+    source_joints: IndexArray  # (R,)
+    target_joints: IndexArray  # (R,)
+    source_child: IndexArray  # (R,) joint the source bone points to (-1: none)
+    target_child: IndexArray  # (R,) likewise in the target
+    align: FloatArray  # (R, 4) Q: target rest frame -> source rest frame
     scale: float  # target leg length / source leg length
     between: list[list[tuple[int, float]]]  # per role: target joints on its bone without a role, with shares
 
 
-Pose = tuple[np.ndarray, np.ndarray]  # one frame's global positions (J, 3) and rotations (J, 4)
+Pose = tuple[FloatArray, FloatArray]  # one frame's global positions (J, 3) and rotations (J, 4)
 
 
 def rest_pose(skeleton: Skeleton) -> Pose:
@@ -95,11 +96,11 @@ def motion_pose(motion: Motion, frame: int = 0) -> Pose:
     return pos[frame], rot[frame]
 
 
-def uprightness(skeleton: Skeleton, roles: dict[str, str], positions: np.ndarray) -> np.ndarray:
+def uprightness(skeleton: Skeleton, roles: dict[str, str], positions: FloatArray) -> FloatArray:
     """How much each pose (positions (..., J, 3)) is a standing body: the least of how straight up
     the neck is over the pelvis and how straight down each leg hangs (1: exactly; arms anywhere)."""
 
-    def down(top: str, bottom: str) -> np.ndarray:
+    def down(top: str, bottom: str) -> FloatArray:
         v = positions[..., skeleton.index(roles[bottom]), :] - positions[..., skeleton.index(roles[top]), :]
         return -v[..., 2] / np.maximum(np.linalg.norm(v, axis=-1), 1e-12)
 
@@ -178,7 +179,7 @@ def leg_length(skeleton: Skeleton, roles: dict[str, str]) -> float:
     balance, steps and feet is scaled by (a skeleton whose legs are under 5 cm cannot stand, and
     would divide by next to nothing)."""
     pos = skeleton.rest_positions()
-    lengths = []
+    lengths: list[np.float64] = []
     for s in SIDES:
         hip, knee, ankle = (pos[skeleton.index(roles[f"{p}_{s}"])] for p in ("hip", "knee", "ankle"))
         lengths.append(np.linalg.norm(knee - hip) + np.linalg.norm(ankle - knee))
@@ -223,7 +224,7 @@ def _bone_end(skeleton: Skeleton, roles: dict[str, str], role: str, nxt: str | N
     return children[0] if children else -1
 
 
-def _bone_frame(skeleton: Skeleton, roles: dict[str, str], pose: Pose, role: str, joint: int, child: int) -> np.ndarray:
+def _bone_frame(skeleton: Skeleton, roles: dict[str, str], pose: Pose, role: str, joint: int, child: int) -> FloatArray:
     """A role bone's frame in a pose (columns): along the bone, then toward a body axis square to
     it in every natural pose: the body's left-right line for the spine, legs and feet (hips for the
     lower body, shoulders above), its front for the arms, which hang down or stretch sideways."""
@@ -245,19 +246,19 @@ def _lateral_pair(role: str) -> tuple[str, str]:
     return ("hip_l", "hip_r") if role in LOWER_BODY else ("shoulder_l", "shoulder_r")
 
 
-def _frame(primary: np.ndarray, secondary: np.ndarray, fallback: np.ndarray) -> np.ndarray:
+def _frame(primary: FloatArray, secondary: FloatArray, fallback: FloatArray) -> FloatArray:
     """Orthonormal frame (columns) with its first axis along `primary`, its second toward
     `secondary`, or toward `fallback` where `secondary` runs along `primary`."""
     a = primary / max(float(np.linalg.norm(primary)), 1e-12)
     for toward in (secondary, fallback, np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0])):
-        b = toward - a * np.dot(a, toward)
+        b: FloatArray = toward - a * np.dot(a, toward)
         if np.linalg.norm(b) > 0.2 * max(float(np.linalg.norm(toward)), 1e-12):
             b = b / np.linalg.norm(b)
             return np.stack([a, b, np.cross(a, b)], axis=1)
     raise SkeletonError("a bone's frame has no direction")  # unreachable: the last two are orthogonal
 
 
-def arc(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+def arc(u: FloatArray, v: FloatArray) -> FloatArray:
     """The smallest rotations taking unit vectors u onto v, (..., 4); opposite vectors turn about
     any axis at right angles."""
     dot = np.sum(u * v, axis=-1)
@@ -272,7 +273,7 @@ def arc(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return quat.normalize(q)
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
+def _unit(v: FloatArray) -> FloatArray:
     return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
 
 
@@ -307,13 +308,13 @@ def retarget(
     return out
 
 
-def _wanted_globals(mapping: RetargetMap, src_pos: np.ndarray, src_rot: np.ndarray) -> dict[int, np.ndarray]:
+def _wanted_globals(mapping: RetargetMap, src_pos: FloatArray, src_rot: FloatArray) -> dict[int, FloatArray]:
     """Target joint -> (T, 4) global rotation, for every role joint and the joints on its bone: the
     source's turn through the rest alignment (joints on the bone: their share of the turn to the next
     role), then all swung so the bone lies along the source bone's actual direction."""
     rest = mapping.target.rest_positions()
     n = len(src_pos)
-    wanted = {}
+    wanted: dict[int, FloatArray] = {}
     for k in range(len(mapping.roles)):
         top_s, end_s = mapping.source_joints[k], mapping.source_child[k]
         top_t, end_t = int(mapping.target_joints[k]), mapping.target_child[k]
@@ -330,7 +331,7 @@ def _wanted_globals(mapping: RetargetMap, src_pos: np.ndarray, src_rot: np.ndarr
     return wanted
 
 
-def _chain_globals(target: Skeleton, wanted: dict[int, np.ndarray], keep: np.ndarray) -> np.ndarray:
+def _chain_globals(target: Skeleton, wanted: dict[int, FloatArray], keep: FloatArray) -> FloatArray:
     """Global rotations (T, J, 4) of every target joint: role joints as wanted, the others carried
     by their parent with their kept local rotation."""
     n, count = keep.shape[:2]
@@ -345,7 +346,7 @@ def _chain_globals(target: Skeleton, wanted: dict[int, np.ndarray], keep: np.nda
     return glob
 
 
-def local_rotations(target: Skeleton, glob: np.ndarray) -> np.ndarray:
+def local_rotations(target: Skeleton, glob: FloatArray) -> FloatArray:
     """Local rotations (T, J, 4) of global ones, normalised and continuous along the frames."""
     local = glob.copy()
     child = np.arange(1, target.num_joints)
@@ -353,7 +354,7 @@ def local_rotations(target: Skeleton, glob: np.ndarray) -> np.ndarray:
     return quat.make_continuous(quat.normalize(local))
 
 
-def _root_positions(mapping: RetargetMap, motion: Motion, glob: np.ndarray, src_pos: np.ndarray) -> np.ndarray:
+def _root_positions(mapping: RetargetMap, motion: Motion, glob: FloatArray, src_pos: FloatArray) -> FloatArray:
     """Target root positions that put the target's pelvis at the source's, scaled by leg length
     (heights measured from the floor, z = 0, in both)."""
     target = mapping.target
@@ -369,7 +370,7 @@ def _root_positions(mapping: RetargetMap, motion: Motion, glob: np.ndarray, src_
 # Feet
 
 
-def planted(motion: Motion, ankle: int, positions: np.ndarray, leg: float) -> np.ndarray:
+def planted(motion: Motion, ankle: int, positions: FloatArray, leg: float) -> BoolArray:
     """(T,) frames where the ankle rests on the floor: low (near its lowest height) and slow."""
     height = positions[:, ankle, 2]
     speed = np.zeros(motion.num_frames)
@@ -382,7 +383,7 @@ def planted(motion: Motion, ankle: int, positions: np.ndarray, leg: float) -> np
 
 
 def _plant_feet(
-    mapping: RetargetMap, motion: Motion, source: tuple[np.ndarray, np.ndarray], out: Motion, sole: float | None
+    mapping: RetargetMap, motion: Motion, source: tuple[FloatArray, FloatArray], out: Motion, sole: float | None
 ) -> Motion:
     """Hold each target foot where the source's is planted: in place from the frame the plant began,
     its lowest point (toes, end sites) as high over the target's sole as the source foot's is over
@@ -429,7 +430,7 @@ def _plant_feet(
         belongs = (src_low[s] - src_sole) * mapping.scale  # over the target's sole
         below = np.maximum(np.minimum(belongs, 0.0) - (over[s] + belongs - sink), 0.0)
         goal[:, 2] = np.maximum(goal[:, 2], ankle[:, 2] + below)
-        moved = ((weight > 0.0) | (below > 0.0)).astype(float)
+        moved = ((weight > 0.0) | (below > 0.0)).astype(np.float64)
         joints = (target_roles[f"hip_{s}"], target_roles[f"knee_{s}"], ankle_t)
         two_bone_ik(mapping.target, pos, glob, joints, goal, moved, left, forward)
     return Motion(
@@ -437,13 +438,13 @@ def _plant_feet(
     )
 
 
-def lowest_foot_point(skeleton: Skeleton, ankle: int, positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+def lowest_foot_point(skeleton: Skeleton, ankle: int, positions: FloatArray, rotations: FloatArray) -> FloatArray:
     """(T,) height of a foot's lowest point: the ankle, the joints below it and their end sites (a
     hand's, from the wrist, likewise)."""
     return foot_points(skeleton, ankle, positions, rotations)[..., 2].min(axis=1)
 
 
-def foot_points(skeleton: Skeleton, ankle: int, positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+def foot_points(skeleton: Skeleton, ankle: int, positions: FloatArray, rotations: FloatArray) -> FloatArray:
     """(T, P, 3) a foot's points: the ankle, the joints below it and their end sites."""
     below = [j for j in range(skeleton.num_joints) if ankle in joint_path(skeleton, ankle, j)]
     points = [positions[:, j] for j in below]
@@ -453,7 +454,7 @@ def foot_points(skeleton: Skeleton, ankle: int, positions: np.ndarray, rotations
     return np.stack(points, axis=1)
 
 
-def _planted_track(goal: np.ndarray, source: np.ndarray, down: np.ndarray) -> np.ndarray:
+def _planted_track(goal: FloatArray, source: FloatArray, down: BoolArray) -> FloatArray:
     """Within each planted run the goal's ground position moves only as the (scaled) source ankle
     does from where the run began: a planted source foot stays put, and so does the target's, even
     where the proportions would have carried it along."""
@@ -466,9 +467,9 @@ def _planted_track(goal: np.ndarray, source: np.ndarray, down: np.ndarray) -> np
     return tracked
 
 
-def _eased(down: np.ndarray) -> np.ndarray:
+def _eased(down: BoolArray) -> FloatArray:
     """1 on planted frames, ramping to 0 over EASE_FRAMES frames on either side."""
-    weight = down.astype(float)
+    weight = down.astype(np.float64)
     for shift in range(1, EASE_FRAMES + 1):
         ramp = 1.0 - shift / (EASE_FRAMES + 1)
         weight[shift:] = np.maximum(weight[shift:], ramp * down[:-shift])
@@ -478,13 +479,13 @@ def _eased(down: np.ndarray) -> np.ndarray:
 
 def two_bone_ik(
     skeleton: Skeleton,
-    pos: np.ndarray,
-    glob: np.ndarray,
+    pos: FloatArray,
+    glob: FloatArray,
     joints: tuple[int, int, int],
-    goal: np.ndarray,
-    weight: np.ndarray,
-    left: np.ndarray,
-    forward: np.ndarray,
+    goal: FloatArray,
+    weight: FloatArray,
+    left: FloatArray,
+    forward: FloatArray,
 ) -> None:
     """Turn hip and knee (global rotations, in place) so the ankle reaches toward `goal` by `weight`.
     A knee bent forward keeps its plane; a straight one (whose plane is float noise, and may point
