@@ -15,9 +15,9 @@ import pytest
 from reactive_anim.core.model import bvh, quat
 from reactive_anim.core.model.errors import ImpactError, SimulationError, SkeletonError
 from reactive_anim.core.model.impact import Impact
-from reactive_anim.core.model.roles import assign_roles
+from reactive_anim.core.model.roles import assign_roles, part_of
 from reactive_anim.core.model.skeleton import Skeleton
-from reactive_anim.core.physics.anatomy import ANATOMICAL_LIMITS, BODY_ROLES, PAPER_LIMITS, TABLE1_MASSES, part_of
+from reactive_anim.core.physics.anatomy import ANATOMICAL_LIMITS, BODY_ROLES, PAPER_LIMITS, TABLE1_MASSES
 from reactive_anim.core.physics.joints import _body_local_rotations, mocap_table, to_motion
 from reactive_anim.core.physics.ragdoll import build_ragdoll
 from reactive_anim.core.physics.simulate import _samples, simulate_impact

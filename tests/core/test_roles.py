@@ -21,7 +21,9 @@ from reactive_anim.core.model.roles import (
     REQUIRED_ROLES,
     apply_roles,
     assign_roles,
+    part_of,
     read_joint_name,
+    side_of,
 )
 from reactive_anim.core.model.skeleton import Skeleton
 from tests.support.mocap import MOCAP, mocap_files, require_mocap
@@ -561,3 +563,10 @@ def test_right_side_listed_first_in_the_hierarchy_changes_nothing():
     right = [r for r in rows if r[0].endswith(".R")]
     left = [r for r in rows if r[0].endswith(".L")]
     assert assign_roles(_build(centre + right + left)) == SAMPLE
+
+
+def test_a_role_names_its_part_and_side_once() -> None:
+    assert [(part_of(r), side_of(r)) for r in ("knee_l", "wrist_r", "pelvis", "neck")] == [
+        ("knee", "l"), ("wrist", "r"), ("pelvis", None), ("neck", None)]  # fmt: skip
+    sided = {part_of(r) for r in ALL_ROLES if side_of(r)}
+    assert sided == {"hip", "knee", "ankle", "toe", "shoulder", "elbow", "wrist", "clavicle"}

@@ -29,23 +29,25 @@ leaves everything before it out (NaN or zero).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
 from reactive_anim.core.model import quat
 from reactive_anim.core.model.classes import reaction_class
+from reactive_anim.core.model.floor import FOOT_ON_FLOOR
+from reactive_anim.core.model.roles import SIDES
 from reactive_anim.core.model.skeleton import Motion, root_child
 from reactive_anim.core.transition.retarget import foot_points
 
 STRIDE = 1.0 / 30.0  # s: the stride of speeds and accelerations (mocap noise is not acceleration)
-CONTACT = 0.02  # m over the floor: a foot point this low stands on it
+CONTACT = FOOT_ON_FLOOR  # m over the floor: a foot point this low stands on it (the core's one definition)
 # m/s: a foot down and slower than this stands (real stance feet 0.1-0.47; a toe skimming the floor in a
 # shuffle's swing 2-3)
 PLANTED_SPEED = 0.5
 STILL_SPEED = 0.25  # m/s: a pelvis slower than this over the floor stands still ...
 STILL_TIME = 0.2  # s: ... and this long is a visible stop
 CALIBRATION_JUMP = 20.0  # m/s: the core's rule (library.take_start): faster than any joint in a take
-SIDES = ("l", "r")
 
 
 def stride_frames(fps: float, stride: float = STRIDE) -> int:
@@ -300,8 +302,23 @@ def lowest_floor(motion: Motion, roles: dict[str, str], start: int | None = None
     return float(feet[start:, :, 2].min())
 
 
+class Seamed(Protocol):
+    """What reaction_seams reads of a core Reaction."""
+
+    @property
+    def frame_c(self) -> int: ...
+    @property
+    def frame_f(self) -> int: ...
+    @property
+    def end_frame(self) -> int: ...
+    @property
+    def chained(self) -> str | None: ...
+    @property
+    def resumed_at(self) -> int | None: ...
+
+
 def reaction_seams(
-    reaction: object, resume_window: int, getup_frames: int | None = None, getup_fade: int = 0
+    reaction: Seamed, resume_window: int, getup_frames: int | None = None, getup_fade: int = 0
 ) -> dict[str, int]:
     """Where a core Reaction's sources meet, as frames of the output: C and F (the transition's fade),
     the get-up's fade-in start and end (getup_frames: the chained clip's length at the output's rate,

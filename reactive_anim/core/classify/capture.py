@@ -8,8 +8,8 @@ capture point. Used by the outcome rule (outcome.py) and, as inputs, by the clas
 (features.py).
 
 The base of support is the convex hull of the soles touching the floor: of each foot that touches
-(the simulation's contacts; for a motion capture, its sole within CONTACT_GAP of the floor), the
-ends of its sole capsule within CONTACT_GAP of the floor (a heel strike touches with the heel
+(the simulation's contacts; for a motion capture, its sole surely on the floor, model/floor.py), the
+ends of its sole capsule surely on the floor (a heel strike touches with the heel
 only), each a disc of the sole's radius. The support is then the convex hull of those points
 grown by that radius (a Minkowski sum, handled exactly: its boundary is the hull's edges moved out
 and arcs round its corners; an octagon per disc, tried first, made the features depend on the
@@ -24,11 +24,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..model.floor import surely_on_floor
 from ..physics.probe import PoseProbe
 from ..physics.ragdoll import Ragdoll
 
 GRAVITY = 9.81  # m/s², the simulation's
-CONTACT_GAP = 0.01  # m: a body this close to the floor touches it (MuJoCo's soft contacts sink a few mm)
 
 
 def eigenfrequency(height: float) -> float:
@@ -160,7 +160,7 @@ class SoleGeometry:
         """The support at these joint positions. touching: (B,) which ragdoll bodies touch the floor
         (SimResult.contacts of the sample), or None to judge it from the geometry."""
         ends, lowest = self.probe.capsule_ends(qpos)
-        near = (lowest - floor <= CONTACT_GAP).reshape(-1, 2)
+        near = surely_on_floor(lowest, floor).reshape(-1, 2)
         body_touches = near.any(axis=1) if touching is None else np.asarray(touching, dtype=bool)[self.geom_body]
         sole_ends = near | (body_touches[:, None] & ~near.any(axis=1, keepdims=True) & _lower_end(lowest))
         on_floor = (sole_ends & (body_touches & self.is_foot)[:, None]).reshape(-1)

@@ -67,6 +67,19 @@ REQUIRED_ROLES: tuple[str, ...] = CENTRE_ROLES + tuple(
 )
 OPTIONAL_ROLES: tuple[str, ...] = tuple(f"{part}_{side}" for part in ("toe", "clavicle") for side in SIDES)
 ALL_ROLES: tuple[str, ...] = REQUIRED_ROLES + OPTIONAL_ROLES
+
+
+def part_of(role: str) -> str:
+    """'knee_l' -> 'knee'; centre roles are their own part."""
+    return role[:-2] if side_of(role) else role
+
+
+def side_of(role: str) -> str | None:
+    """'knee_l' -> 'l'; a centre role has no side (None)."""
+    side = role[-1]
+    return side if role[-2:-1] == "_" and side in SIDES else None
+
+
 # The back rule lets `back` share its joint with these roles; every other pair must differ.
 BACK_MAY_SHARE = ("waist", "chest")
 

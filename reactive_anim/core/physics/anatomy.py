@@ -133,11 +133,6 @@ GROUP_OF_PART = {
 }  # fmt: skip
 
 
-def part_of(role: str) -> str:
-    """'knee_l' -> 'knee'; centre roles are their own part."""
-    return role[:-2] if role[-2:] in ("_l", "_r") else role
-
-
 def resolve_profile(profile: str | JointLimits) -> tuple[str, JointLimits]:
     """(name, limits) of a profile given by name or as limits; limits must name every joint kind."""
     if isinstance(profile, str):

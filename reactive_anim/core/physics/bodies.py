@@ -27,9 +27,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..model import quat
+from ..model.arrays import FloatArray, IntArray
 from ..model.errors import SimulationError, SkeletonError
+from ..model.roles import part_of, side_of
 from ..model.skeleton import Motion, Skeleton, forward_kinematics
-from .anatomy import BODY_ROLES, FLEX_TOWARD, TABLE1_MASSES, JointLimits, part_of
+from .anatomy import BODY_ROLES, FLEX_TOWARD, TABLE1_MASSES, JointLimits
 
 
 @dataclass(frozen=True)
@@ -52,13 +54,13 @@ class RagdollBody:
     roles: tuple[str, ...]
     members: list[int]
     mass: float
-    axes: np.ndarray
+    axes: FloatArray
     hinges: tuple[int, ...] = ()
-    hinge_sign: np.ndarray = field(default_factory=lambda: np.ones(3))
-    ranges: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    hinge_sign: FloatArray = field(default_factory=lambda: np.ones(3))
+    ranges: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))
     body_id: int = -1
-    qpos_adr: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
-    dof_adr: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    qpos_adr: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    dof_adr: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     subtree_mass: float = 0.0
 
 
@@ -71,11 +73,11 @@ def mass_moved(bodies: tuple[RagdollBody, ...], body: RagdollBody) -> float:
     return body.subtree_mass
 
 
-def unit_vector(v: np.ndarray) -> np.ndarray:
+def unit_vector(v: FloatArray) -> FloatArray:
     return v / max(float(np.linalg.norm(v)), 1e-12)
 
 
-def _rotation_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+def _rotation_between(u: FloatArray, v: FloatArray) -> FloatArray:
     """Smallest rotation (quaternion) taking direction u to direction v."""
     u, v = unit_vector(u), unit_vector(v)
     axis = np.cross(u, v)
@@ -90,7 +92,7 @@ def _rotation_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return quat.from_axis_angle(axis / s, np.arctan2(s, c))
 
 
-def _tips(skeleton: Skeleton, joints: list[int], pos: np.ndarray, grot: np.ndarray) -> np.ndarray:
+def _tips(skeleton: Skeleton, joints: list[int], pos: FloatArray, grot: FloatArray) -> FloatArray:
     """World positions of the joints and of their End Sites, (N, 3)."""
     pts = [pos[j] for j in joints]
     for j in joints:
@@ -99,7 +101,7 @@ def _tips(skeleton: Skeleton, joints: list[int], pos: np.ndarray, grot: np.ndarr
     return np.array(pts)
 
 
-def body_layout(skeleton: Skeleton, roles: dict[str, str]) -> tuple[list[RagdollBody], np.ndarray]:
+def body_layout(skeleton: Skeleton, roles: dict[str, str]) -> tuple[list[RagdollBody], IntArray]:
     """Bodies in parent-first order, and the body each skeleton joint belongs to."""
     index = {role: skeleton.index(name) for role, name in roles.items()}
     owner: dict[int, list[str]] = {}
@@ -111,14 +113,14 @@ def body_layout(skeleton: Skeleton, roles: dict[str, str]) -> tuple[list[Ragdoll
     body_joints.remove(index["pelvis"])
     body_joints.insert(0, index["pelvis"])
     # Each joint belongs to the body of its nearest ancestor-or-self that has one.
-    body_of_joint = np.zeros(skeleton.num_joints, dtype=int)
+    body_of_joint = np.zeros(skeleton.num_joints, dtype=np.int64)
     slot = {j: k for k, j in enumerate(body_joints)}
     for j in range(skeleton.num_joints):
         a = j
         while a >= 0 and a not in slot:
             a = int(skeleton.parents[a])
         body_of_joint[j] = slot[a] if a >= 0 else 0
-    bodies = []
+    bodies: list[RagdollBody] = []
     for k, j in enumerate(body_joints):
         names = tuple(owner[j])
         parent = -1 if k == 0 else int(body_of_joint[skeleton.parents[j]])
@@ -151,8 +153,8 @@ def body_layout(skeleton: Skeleton, roles: dict[str, str]) -> tuple[list[Ragdoll
 class Pose:
     """World joint positions (J, 3) and rotations (J, 4) of one pose."""
 
-    pos: np.ndarray
-    grot: np.ndarray
+    pos: FloatArray
+    grot: FloatArray
 
 
 @dataclass(frozen=True)
@@ -160,9 +162,9 @@ class _Reference:
     """The reference pose (root position, local rotations, joint offsets), the stance foot pitch
     (radians) and the character's height (m)."""
 
-    root: np.ndarray
-    local: np.ndarray
-    offsets: np.ndarray
+    root: FloatArray
+    local: FloatArray
+    offsets: FloatArray
     foot_pitch: float
     height: float
 
@@ -172,18 +174,18 @@ class Geometry:
     """Where the neutral pose puts the bodies: joint positions (J, 3), each body's segment end and
     capsule radius, the pelvis capsule's right-hip joint, and the ball-of-foot joint per side."""
 
-    pos: np.ndarray
-    ends: list[np.ndarray]
+    pos: FloatArray
+    ends: list[FloatArray]
     radii: list[float]
     hip_r: int
     balls: dict[str, int]
 
 
 # The character's (forward, left, up) unit vectors in a standing pose.
-CharacterFrame = tuple[np.ndarray, np.ndarray, np.ndarray]
+CharacterFrame = tuple[FloatArray, FloatArray, FloatArray]
 
 
-def segment_end(skeleton: Skeleton, bodies: list[RagdollBody], k: int, pose: Pose, index: dict[str, int]) -> np.ndarray:
+def segment_end(skeleton: Skeleton, bodies: list[RagdollBody], k: int, pose: Pose, index: dict[str, int]) -> FloatArray:
     """Where body k's capsule ends (world, in the given pose)."""
     pos, grot = pose.pos, pose.grot
     body = bodies[k]
@@ -204,7 +206,7 @@ def segment_end(skeleton: Skeleton, bodies: list[RagdollBody], k: int, pose: Pos
     return pos[body.joint] + 0.08 * parent_dir
 
 
-def _character_frame(pos: np.ndarray, index: dict[str, int]) -> CharacterFrame:
+def _character_frame(pos: FloatArray, index: dict[str, int]) -> CharacterFrame:
     """forward, left, up of a standing pose (world Z up; left from the right hip to the left hip)."""
     up = np.array([0.0, 0.0, 1.0])
     left = pos[index["hip_l"]] - pos[index["hip_r"]]
@@ -226,13 +228,13 @@ def foot_point(skeleton: Skeleton, index: dict[str, int], side: str) -> int:
     return children[0] if children else index[f"ankle_{side}"]
 
 
-def _stance_pitch(skeleton: Skeleton, index: dict[str, int], positions: np.ndarray) -> float:
+def _stance_pitch(skeleton: Skeleton, index: dict[str, int], positions: FloatArray) -> float:
     """Angle below horizontal of the ankle -> ball-of-foot line while the foot stands, radians.
 
     positions: (T, J, 3) world joint positions of a standing or walking motion (or the rest pose);
     the stance frames are those where the ankle is within 1 cm of its lowest.
     """
-    pitches = []
+    pitches: list[FloatArray] = []
     for side in ("l", "r"):
         ankle, ball = index[f"ankle_{side}"], foot_point(skeleton, index, side)
         if ball == ankle:
@@ -246,7 +248,7 @@ def _stance_pitch(skeleton: Skeleton, index: dict[str, int], positions: np.ndarr
     return float(np.clip(np.median(np.concatenate(pitches)), 0.0, np.radians(60.0)))
 
 
-def neutral_pose(skeleton: Skeleton, bodies: list[RagdollBody], index: dict[str, int], ref: _Reference) -> np.ndarray:
+def neutral_pose(skeleton: Skeleton, bodies: list[RagdollBody], index: dict[str, int], ref: _Reference) -> FloatArray:
     """Local rotations (J, 4) of the reference pose with every segment swung to stand straight.
 
     Each body, parents first, turns by the smallest rotation that points its segment at its neutral
@@ -255,7 +257,7 @@ def neutral_pose(skeleton: Skeleton, bodies: list[RagdollBody], index: dict[str,
     local_rot = ref.local.copy()
     foot_pitch = ref.foot_pitch
 
-    def fk() -> tuple[np.ndarray, np.ndarray]:
+    def fk() -> tuple[FloatArray, FloatArray]:
         p, r = forward_kinematics(skeleton, ref.root[None], local_rot[None], ref.offsets[None])
         return p[0], r[0]
 
@@ -284,7 +286,7 @@ def neutral_pose(skeleton: Skeleton, bodies: list[RagdollBody], index: dict[str,
     return local_rot
 
 
-def _joint_axes(part: str, side: str | None, bone: np.ndarray, frame: CharacterFrame) -> tuple[np.ndarray, float]:
+def _joint_axes(part: str, side: str | None, bone: FloatArray, frame: CharacterFrame) -> tuple[FloatArray, float]:
     """Rows e1 (flexion), e2 (twist), e3 (abduction) and the abduction sign for one joint."""
     forward, left, up = frame
     toward = {"forward": forward, "back": -forward, "up": up}[FLEX_TOWARD[part]]
@@ -304,22 +306,22 @@ def _parent(skeleton: Skeleton, joint: int) -> int:
     return int(skeleton.parents[joint])
 
 
-def find_leaf_joints(skeleton: Skeleton, bodies: list[RagdollBody]) -> np.ndarray:
+def find_leaf_joints(skeleton: Skeleton, bodies: list[RagdollBody]) -> IntArray:
     """Joints without a body that have no body below them: they move nothing the simulation sees, so
     the output takes their rotations from the mocap (toes, fingers, head, face)."""
     body_joints = {b.joint for b in bodies}
-    carries = set()  # joints on the way to a body: their rotation places the bodies below
+    carries: set[int] = set()  # joints on the way to a body: their rotation places the bodies below
     for j in body_joints:
         p = int(skeleton.parents[j])
         while p >= 0 and p not in carries:
             carries.add(p)
             p = int(skeleton.parents[p])
-    return np.array([j for j in range(skeleton.num_joints) if j not in body_joints | carries], dtype=int)
+    return np.array([j for j in range(skeleton.num_joints) if j not in body_joints | carries], dtype=np.int64)
 
 
 def find_spine_segments(
-    skeleton: Skeleton, body_of_joint: np.ndarray, index: dict[str, int]
-) -> tuple[tuple[int, np.ndarray, np.ndarray], ...]:
+    skeleton: Skeleton, body_of_joint: IntArray, index: dict[str, int]
+) -> tuple[tuple[int, IntArray, FloatArray], ...]:
     """How the trunk's and the neck's bends are shared among the skeleton's joints.
 
     The ragdoll bends the trunk at the waist and back bodies and the neck at one, while skeletons
@@ -328,7 +330,7 @@ def find_spine_segments(
     path and the cumulative share of the body's bend each joint carries, by bone length (a longer
     bone bends more, as vertebrae add up; the head counts as long as the neck).
     """
-    segments = []
+    segments: list[tuple[int, IntArray, FloatArray]] = []
     for first, last, after in (
         (index["waist"], _parent(skeleton, index["neck"]), index["neck"]),
         (index["neck"], index["head"], None),
@@ -388,7 +390,7 @@ def reference_pose(
 
 
 def with_hinges(
-    bodies: list[RagdollBody], ends: list[np.ndarray], npos: np.ndarray, index: dict[str, int], limits: JointLimits
+    bodies: list[RagdollBody], ends: list[FloatArray], npos: FloatArray, index: dict[str, int], limits: JointLimits
 ) -> list[RagdollBody]:
     """Bodies with their joint frames, the hinges the limits give them, and the mass each moves."""
     frame = _character_frame(npos, index)
@@ -396,12 +398,12 @@ def with_hinges(
     out = [bodies[0]]
     for k, b in enumerate(bodies[1:], 1):
         part = part_of(b.name)
-        side = b.name[-1] if b.name[-2:] in ("_l", "_r") else None
+        side = side_of(b.name)
         bone = up if part in ("waist", "back", "neck") else ends[k] - npos[b.joint]
         axes, sign = _joint_axes(part, side, bone, frame)
         kinds = limits[part]
         hinges = tuple(slot for slot in range(3) if kinds[slot] is not None)
-        ranges = np.array([kinds[slot] for slot in hinges], dtype=float).reshape(-1, 2)
+        ranges = np.array([kinds[slot] for slot in hinges], dtype=np.float64).reshape(-1, 2)
         out.append(replace(b, axes=axes, hinge_sign=np.array([1.0, 1.0, sign]), hinges=hinges, ranges=ranges))
     # Mass each joint moves: its body and everything below (children come after their parents).
     subtree = [0.0] * len(out)

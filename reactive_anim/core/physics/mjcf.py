@@ -15,7 +15,8 @@ import mujoco
 import numpy as np
 
 from ..model.errors import SimulationError
-from .anatomy import HINGE_NAMES, JOINT_DAMPING_PER_KG, JOINT_STIFFNESS_PER_KG, part_of
+from ..model.roles import part_of
+from .anatomy import HINGE_NAMES, JOINT_DAMPING_PER_KG, JOINT_STIFFNESS_PER_KG
 from .bodies import Geometry, RagdollBody, unit_vector
 
 # The one simulation step. The servo gains and the contact and limit time constants are tuned at it;

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..model import quat
 from ..model.errors import SimulationError, SkeletonError
-from ..model.roles import REQUIRED_ROLES, assign_roles
+from ..model.roles import REQUIRED_ROLES, assign_roles, part_of
 from ..model.skeleton import Motion, Skeleton, forward_kinematics
 from .anatomy import (
     GROUP_OF_PART,
@@ -26,7 +26,6 @@ from .anatomy import (
     TABLE1_TOTAL_MASS,
     HingeRange,
     JointLimits,
-    part_of,
     resolve_profile,
 )
 from .bodies import (

@@ -32,11 +32,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.arrays import BoolArray, FloatArray
+from ..model.floor import on_floor
+from ..model.roles import SIDES
 from ..model.skeleton import Motion, Skeleton, root_child
 from .retarget import foot_points, joint_path, leg_length, local_rotations, lowest_foot_point, two_bone_ik
 
-CONTACT_HEIGHT = 0.03  # m over the floor: a foot point lower than this stands on it, fully from ...
-CONTACT_BAND = 0.02  # ... this much lower (toe clearance in a walk's swing is about 1.5 cm)
 LOWEST_SCALE = 0.003  # m: a foot point this much higher than its lowest counts 1/e as much for the slide
 SKIM_SPEED = 3.5  # m/s: a point faster than this does not stand, fully below ...
 SPEED_BAND = 1.0  # ... this much slower (a swing foot moves at 3-5 m/s; a blend slides it at 0.5-2.5)
@@ -48,7 +48,6 @@ SOFT_REACH = 0.95  # of a leg's length: a held foot asking more of it reaches le
 # a held foot costs some joint acceleration when it is let go (docs/measurements.md)
 MAX_OFFSET = 0.4
 SETTLE = 1.0  # s after the reaction first looked at for the offsets to be let go (a walker's feet lift in it)
-SIDES = ("l", "r")
 LIFT_EASE = 0.15  # s over which the body is lifted onto the floor before and after the deepest frame
 LIFT_MIN = 0.002  # m: less under the floor than this is left as it is
 
@@ -187,12 +186,12 @@ def _with_limbs(motion: Motion, glob: FloatArray, limbs: list[tuple[list[int], B
 
 def _sliding(points: FloatArray, floor: float, fps: float) -> tuple[FloatArray, FloatArray]:
     """From a foot's points (T, P, 3), per frame from the second: how much it is on the floor (0..1,
-    by height: CONTACT_HEIGHT) and the slide to take back (T - 1, 2), counted as much as the foot
+    by height: model/floor.py) and the slide to take back (T - 1, 2), counted as much as the foot
     stands: on the floor and slow (a swing foot skimming the floor is fast). Ramps rather than
     thresholds, so a millimetre more or less changes the result by little; a foot rolling from heel
     to toe stands on the point that stays."""
     height = points[..., 2]
-    firm = np.clip((floor + CONTACT_HEIGHT - height) / CONTACT_BAND, 0.0, 1.0)  # (T, P)
+    firm = on_floor(height, floor)  # (T, P)
     step = np.diff(points[..., :2], axis=0)  # (T - 1, P, 2)
     slow = np.clip((SKIM_SPEED - np.linalg.norm(step, axis=-1) * fps) / SPEED_BAND, 0.0, 1.0)
     weight = np.minimum(firm[1:], firm[:-1]) * slow
