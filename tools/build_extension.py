@@ -38,15 +38,21 @@ import zipfile
 from dataclasses import dataclass
 from importlib.util import find_spec
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-try:
+if TYPE_CHECKING:  # one of the two, typed as the standalone one (pip's is a copy of it)
     from packaging.requirements import Requirement
     from packaging.utils import canonicalize_name, parse_wheel_filename
     from packaging.version import Version
-except ImportError:  # pip always vendors packaging, so the tool needs nothing pip does not have
-    from pip._vendor.packaging.requirements import Requirement
-    from pip._vendor.packaging.utils import canonicalize_name, parse_wheel_filename
-    from pip._vendor.packaging.version import Version
+else:
+    try:
+        from packaging.requirements import Requirement
+        from packaging.utils import canonicalize_name, parse_wheel_filename
+        from packaging.version import Version
+    except ImportError:  # pip always vendors packaging, so the tool needs nothing pip does not have
+        from pip._vendor.packaging.requirements import Requirement
+        from pip._vendor.packaging.utils import canonicalize_name, parse_wheel_filename
+        from pip._vendor.packaging.version import Version
 
 REPO = Path(__file__).resolve().parents[1]
 PACKAGE_DIR = REPO / "reactive_anim"

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Lint and types, configured in pyproject.toml: `ruff check` and `ruff format --check` over
-# reactive_anim/, tools/ and tests/, then pyright ([tool.pyright]: reactive_anim/, standard mode).
+# reactive_anim/, tools/ and tests/, then pyright ([tool.pyright]: the same three, standard mode).
 # Builds (or reuses) the pinned .venv/lint first (tools/setup_env.sh lint). Runs every check even
 # after a failure; the exit status is non-zero if any of them failed. Needs no network after setup.
 set -uo pipefail
@@ -22,6 +22,12 @@ if [ "$(cat "$stubs/.stamp" 2>/dev/null)" != "$want" ]; then
   fi
   echo "$want" > "$stubs/.stamp"
 fi
+# Our own hand-written stubs (tools/typings: onnxruntime, which ships none) go beside them, copied
+# afresh on every run so that an edit to them counts.
+for package in "$root"/tools/typings/*/; do
+  rm -rf "$stubs/$(basename "$package")"
+  cp -R "$package" "$stubs/"
+done
 
 export PYRIGHT_PYTHON_IGNORE_WARNINGS=1  # no "new pyright version" look-up on PyPI
 status=0

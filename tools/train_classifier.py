@@ -1,4 +1,4 @@
-"""Train the reaction classifier and write the model and its report (paper section 2.3; issue 12).
+"""Train the reaction classifier and write the model and its report (paper section 2.3).
 
     python -m tools.train_classifier                 # the shipped model: reactive_anim/models/
     python -m tools.train_classifier --quick         # about 20 s; writes out/reaction_classifier.onnx
@@ -28,6 +28,7 @@ from tools.classifier.report import write_report
 
 
 def parser() -> argparse.ArgumentParser:
+    assert __doc__ is not None
     p = argparse.ArgumentParser(prog="python -m tools.train_classifier", description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true", help="fewer samples, one network size, no real-mocap figures")
     p.add_argument(

@@ -6,11 +6,12 @@ import bpy
 import numpy as np
 import pytest
 
+from reactive_anim.blender import compat
 from reactive_anim.blender.character import action_io, bvh_import
 from reactive_anim.core.model import bvh, quat
 from reactive_anim.core.model.errors import SkeletonError
 from reactive_anim.core.model.skeleton import Motion
-from tests.support.actions import keyframes
+from tests.support.actions import action_of, keyframes
 from tests.support.mocap import require_mocap
 
 # Three skeletons from three datasets: CMU cgspeed (31 joints, ZYX, only the root translated),
@@ -42,7 +43,7 @@ def test_core_fk_matches_blender_import(relative):
 def test_write_then_read_round_trip_leaves_source_untouched():
     path = require_mocap("bandai_namco/dataset-1/dataset-1_walk_normal_002.bvh")
     armature = bvh_import.import_bvh(bpy.context, path)
-    source = armature.animation_data.action
+    source = action_of(armature)
     before = keyframes(source)
     motion = action_io.read_motion(armature)
     assert motion.local_pos is not None  # this dataset animates every joint's translation
@@ -108,6 +109,7 @@ def test_evaluated_pose_includes_constraints():
     rig = _rotated_scaled_rig()
     plain = action_io.read_motion(rig, frame_range=(1, 2))
     constraint = rig.pose.bones["hand"].constraints.new("LIMIT_ROTATION")
+    assert isinstance(constraint, bpy.types.LimitRotationConstraint)
     constraint.use_limit_x = constraint.use_limit_y = constraint.use_limit_z = True
     constraint.owner_space = "LOCAL"
     rig.pose.bones["hand"].rotation_mode = "XYZ"
@@ -136,6 +138,7 @@ def test_action_api_path_matches_this_blender():
     if major_minor < (4, 4):
         assert not hasattr(action, "layers") and len(action.fcurves) == 3 * 4 + 3
     else:
-        bag = action.layers[0].strips[0].channelbag(action.slots[0])
+        layered = compat.layered(action)
+        bag = layered.layers[0].strips[0].channelbag(layered.slots[0])
         assert len(bag.fcurves) == 3 * 4 + 3
         assert {g.name for g in bag.groups} == {"root", "arm", "hand"}

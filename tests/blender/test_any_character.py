@@ -16,6 +16,7 @@ from reactive_anim.core.model.roles import RIG_PRESETS, assign_roles
 from reactive_anim.core.model.skeleton import Skeleton
 from reactive_anim.core.transition import retarget
 from reactive_anim.core.transition.casting import _sole
+from tests.support.actions import action_of
 from tests.support.mocap import require_mocap
 from tools.devkit.skeletons import WALK, role_bone_angles, turned_chain
 
@@ -51,7 +52,7 @@ def test_reactions_bake_onto_shared_skeletons_with_the_feet_on_the_floor(empty_s
 
     result = _bake_one_push(empty_scene, rig, frame, 90.0)
 
-    assert rig.animation_data.action.name == result.reacted_action
+    assert action_of(rig).name == result.reacted_action
     reacted = action_io.read_motion(rig)
     assert reacted.num_frames > frame + before.fps * 0.5
     # The clip after F (its first half: the end is blended into the resumed motion) stands on the
@@ -106,5 +107,5 @@ def test_an_a_pose_rig_with_rolled_bones_plays_the_clips_role_bones_as_the_sourc
     assert max(angles.values()) < 5.0, {r: round(v, 1) for r, v in angles.items() if v > 2}
 
     result = _bake_one_push(empty_scene, rig, 60, 120.0)
-    assert rig.animation_data.action.name == "hero_walk.reacted"
+    assert action_of(rig).name == "hero_walk.reacted"
     assert "'hit_01' mixamorig:Spine2:" in result.summary()

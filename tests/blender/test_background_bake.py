@@ -13,8 +13,9 @@ import pytest
 
 from reactive_anim.blender.bake import bake, worker
 from reactive_anim.core.model.errors import Cancelled, LibraryError, SkeletonError
-from tests.support.actions import keyframes
+from tests.support.actions import action_of, keyframes
 from tests.support.bake_scene import blend_snapshot, library_without_falls, walk_with_impacts
+from tools.devkit.operators import addon_ops
 
 TIMEOUT_S = 120.0
 
@@ -31,10 +32,10 @@ def _poll_until_done(background: worker.BackgroundBake) -> int:
 
 def test_the_background_bake_equals_the_synchronous_bake(empty_scene):
     rig = walk_with_impacts(empty_scene)
-    assert bpy.ops.reactive_anim.bake(armature_name="walk") == {"FINISHED"}
-    synchronous = keyframes(rig.animation_data.action)
+    assert addon_ops.bake(armature_name="walk") == {"FINISHED"}
+    synchronous = keyframes(action_of(rig))
     summary = bake.bake_state(rig).summary
-    bpy.ops.reactive_anim.clear_bake(armature_name="walk")
+    addon_ops.clear_bake(armature_name="walk")
 
     job = bake.prepare_bake(empty_scene, rig)
     background = worker.BackgroundBake(job).start()
@@ -50,8 +51,8 @@ def test_the_background_bake_equals_the_synchronous_bake(empty_scene):
     assert "Reactions on 'walk': impact 2 of 3 (impact marker 'hit_02' at frame 131) - Esc to cancel" in texts
     result = bake.commit_bake(job, background.baked, background.seconds)
 
-    assert rig.animation_data.action.name == "walk.reacted"
-    assert keyframes(rig.animation_data.action) == synchronous
+    assert action_of(rig).name == "walk.reacted"
+    assert keyframes(action_of(rig)) == synchronous
     strip_time = [line.rsplit(",", 1)[0] for line in summary.splitlines()[1:]]
     assert [line.rsplit(",", 1)[0] for line in result.summary().splitlines()[1:]] == strip_time
 
@@ -92,12 +93,12 @@ def test_one_bake_at_a_time_and_the_poll_says_why(empty_scene):
         with pytest.raises(RuntimeError, match="a bake is already running on 'walk'"):
             worker.BackgroundBake(job).start()
         with pytest.raises(RuntimeError, match=r"bake.poll\(\) Reactions are being computed for 'walk'"):
-            bpy.ops.reactive_anim.bake(armature_name="walk")
+            addon_ops.bake(armature_name="walk")
         with pytest.raises(RuntimeError, match=r"preview.poll\(\) Reactions are being computed for 'walk'"):
-            bpy.ops.reactive_anim.preview(armature_name="walk")
+            addon_ops.preview(armature_name="walk")
     finally:
         background.cancel()
-    assert bpy.ops.reactive_anim.bake.poll()
+    assert addon_ops.bake.poll()
 
 
 def test_the_result_is_refused_if_the_character_changed_its_action_meanwhile(empty_scene):
@@ -148,18 +149,18 @@ def _until_done(run: worker.ModalRun) -> worker.Outcome:
 
 def test_the_modal_run_driven_by_timer_events_equals_the_synchronous_bake(empty_scene):
     rig = walk_with_impacts(empty_scene)
-    bpy.ops.reactive_anim.bake(armature_name="walk")
-    synchronous = keyframes(rig.animation_data.action)
-    bpy.ops.reactive_anim.clear_bake(armature_name="walk")
+    addon_ops.bake(armature_name="walk")
+    synchronous = keyframes(action_of(rig))
+    addon_ops.clear_bake(armature_name="walk")
 
     run, wm, statuses = _modal_run(bake.prepare_bake(empty_scene, rig))
     run.start()
-    assert rig.animation_data.action.name == "walk"  # nothing is written while it runs
+    assert action_of(rig).name == "walk"  # nothing is written while it runs
     outcome = _until_done(run)
 
     assert outcome.result == "FINISHED"
     assert outcome.reports[0][1].startswith("'walk': 3 impacts baked into 'walk.reacted'")
-    assert keyframes(rig.animation_data.action) == synchronous
+    assert keyframes(action_of(rig)) == synchronous
     assert len(wm.added) == 1 and wm.removed == [wm.added[0][1]]  # one timer, removed once
     assert statuses[0].startswith("Reactions on 'walk': impact 1 of 3") and statuses[-1] is None
     assert worker.running() is None

@@ -12,20 +12,22 @@ from reactive_anim.blender.character import action_io
 from reactive_anim.blender.impacts import impacts
 from reactive_anim.core.model import quat
 from reactive_anim.core.model.classes import CLASS_SLUGS
-from tests.support.actions import fcurves, keyframes
+from tests.support.actions import action_of, fcurves, keyframes
 from tests.support.bake_scene import blend_snapshot, library_without_falls, walk_with_impacts
+from tools.devkit.blender_types import armature_data, as_buffer
+from tools.devkit.operators import addon_ops
 
 
 def test_bake_writes_a_new_action_and_leaves_the_original_as_it_was(empty_scene):
     rig = walk_with_impacts(empty_scene)
-    original = rig.animation_data.action
+    original = action_of(rig)
     keys_before = keyframes(original)
     markers_before = blend_snapshot()["markers"]
     walk = action_io.read_motion(rig)
 
-    assert bpy.ops.reactive_anim.bake(armature_name="walk") == {"FINISHED"}
+    assert addon_ops.bake(armature_name="walk") == {"FINISHED"}
 
-    reacted = rig.animation_data.action
+    reacted = action_of(rig)
     assert reacted.name == "walk.reacted" and reacted != original
     assert original.use_fake_user and keyframes(original) == keys_before
     assert blend_snapshot()["markers"] == markers_before
@@ -34,11 +36,13 @@ def test_bake_writes_a_new_action_and_leaves_the_original_as_it_was(empty_scene)
     assert first == 1 and last >= 264  # the walk's frames at least (a reaction may play past its end)
     curves = fcurves(reacted)
     keyed = {(fc.data_path, fc.array_index) for fc in curves}
-    quaternions = {(f'pose.bones["{b.name}"].rotation_quaternion', i) for b in rig.data.bones for i in range(4)}
+    quaternions = {
+        (f'pose.bones["{b.name}"].rotation_quaternion', i) for b in armature_data(rig).bones for i in range(4)
+    }
     assert quaternions | {('pose.bones["pelvis"].location', i) for i in range(3)} <= keyed
     for fc in curves:
         frames = np.empty(len(fc.keyframe_points) * 2, dtype=np.float32)
-        fc.keyframe_points.foreach_get("co", frames)
+        fc.keyframe_points.foreach_get("co", as_buffer(frames))
         assert np.array_equal(frames[0::2], np.arange(first, last + 1)), fc.data_path
     # before the first impact (frame 41) the reacted motion is the walk; shortly after, it is not
     motion = action_io.read_motion(rig, reacted)
@@ -59,35 +63,35 @@ def test_bake_writes_a_new_action_and_leaves_the_original_as_it_was(empty_scene)
 def test_clear_bake_restores_the_original(empty_scene):
     rig = walk_with_impacts(empty_scene)
     before = blend_snapshot()
-    bpy.ops.reactive_anim.bake(armature_name="walk")
+    addon_ops.bake(armature_name="walk")
     assert "walk.reacted" in bpy.data.actions
 
-    assert bpy.ops.reactive_anim.clear_bake(armature_name="walk") == {"FINISHED"}
+    assert addon_ops.clear_bake(armature_name="walk") == {"FINISHED"}
 
-    assert rig.animation_data.action.name == "walk"
+    assert action_of(rig).name == "walk"
     assert "walk.reacted" not in bpy.data.actions
     after = blend_snapshot()
     assert after["actions"] == before["actions"] and after["markers"] == before["markers"]
     assert after["objects"]["walk"][:3] == before["objects"]["walk"][:3]
     with pytest.raises(RuntimeError, match=r"clear_bake.poll\(\) There are no baked reactions to clear"):
-        bpy.ops.reactive_anim.clear_bake(armature_name="walk")
+        addon_ops.clear_bake(armature_name="walk")
 
 
 def test_two_bakes_give_identical_keyframes_and_a_rebake_replaces_the_first(empty_scene):
     rig = walk_with_impacts(empty_scene)
-    original_keys = keyframes(rig.animation_data.action)
-    bpy.ops.reactive_anim.bake(armature_name="walk")
-    first = keyframes(rig.animation_data.action)
+    original_keys = keyframes(action_of(rig))
+    addon_ops.bake(armature_name="walk")
+    first = keyframes(action_of(rig))
 
-    bpy.ops.reactive_anim.bake(armature_name="walk")  # bakes the original again, replaces walk.reacted
+    addon_ops.bake(armature_name="walk")  # bakes the original again, replaces walk.reacted
     assert sorted(a.name for a in bpy.data.actions) == ["walk", "walk.reacted"]
-    assert rig.animation_data.action.name == "walk.reacted"
-    assert keyframes(rig.animation_data.action) == first
+    assert action_of(rig).name == "walk.reacted"
+    assert keyframes(action_of(rig)) == first
     assert keyframes(bpy.data.actions["walk"]) == original_keys
 
-    bpy.ops.reactive_anim.clear_bake(armature_name="walk")
-    bpy.ops.reactive_anim.bake(armature_name="walk")
-    assert keyframes(rig.animation_data.action) == first
+    addon_ops.clear_bake(armature_name="walk")
+    addon_ops.bake(armature_name="walk")
+    assert keyframes(action_of(rig)) == first
 
 
 @pytest.mark.parametrize(
@@ -128,22 +132,22 @@ def test_a_failed_bake_leaves_no_trace(empty_scene, tmp_path, case, expected):
     before = blend_snapshot()
 
     with pytest.raises(RuntimeError, match=expected):
-        bpy.ops.reactive_anim.bake(**options)
+        addon_ops.bake(**options)
 
     assert blend_snapshot() == before
-    assert rig.animation_data.action.name == "walk" and "walk.reacted" not in bpy.data.actions
+    assert action_of(rig).name == "walk" and "walk.reacted" not in bpy.data.actions
 
 
 def test_a_failed_rebake_keeps_the_previous_bake(empty_scene):
     rig = walk_with_impacts(empty_scene)
-    bpy.ops.reactive_anim.bake(armature_name="walk")
+    addon_ops.bake(armature_name="walk")
     before = blend_snapshot()
     impacts.impact_data(empty_scene.timeline_markers["hit_01"]).bone = "tail"
     with pytest.raises(RuntimeError, match="impact marker 'hit_01' at frame 41 is on bone 'tail'"):
-        bpy.ops.reactive_anim.bake(armature_name="walk")
+        addon_ops.bake(armature_name="walk")
     impacts.impact_data(empty_scene.timeline_markers["hit_01"]).bone = "chest"
     assert blend_snapshot() == before
-    assert rig.animation_data.action.name == "walk.reacted"
+    assert action_of(rig).name == "walk.reacted"
 
 
 def test_bake_is_one_undo_step(empty_scene):
@@ -152,16 +156,16 @@ def test_bake_is_one_undo_step(empty_scene):
     before = blend_snapshot()
     assert "UNDO" in bake_ops.REACTIVE_ANIM_OT_bake.bl_options
     # as a button calls it: through invoke (synchronous in background mode), pushing an undo step
-    assert bpy.ops.reactive_anim.bake("INVOKE_DEFAULT", True, armature_name="walk") == {"FINISHED"}
-    assert rig.animation_data.action.name == "walk.reacted"
+    assert addon_ops.bake("INVOKE_DEFAULT", True, armature_name="walk") == {"FINISHED"}
+    assert action_of(rig).name == "walk.reacted"
 
     bpy.ops.ed.undo()
 
     rig = bpy.data.objects["walk"]  # undo reloads the data: old references are stale
-    assert rig.animation_data.action.name == "walk" and "walk.reacted" not in bpy.data.actions
+    assert action_of(rig).name == "walk" and "walk.reacted" not in bpy.data.actions
     assert blend_snapshot() == before
     bpy.ops.ed.redo()
-    assert bpy.data.objects["walk"].animation_data.action.name == "walk.reacted"
+    assert action_of(bpy.data.objects["walk"]).name == "walk.reacted"
 
 
 def test_default_library_and_cache_locations():
@@ -169,5 +173,5 @@ def test_default_library_and_cache_locations():
     library = resources.default_library_path()
     assert library is not None and (library / "library.toml").is_file()
     cache = resources.library_cache_dir()
-    assert cache.is_dir() and library not in cache.parents
+    assert cache is not None and cache.is_dir() and library not in cache.parents
     assert resources.default_model_path().name == "reaction_classifier.onnx"

@@ -13,12 +13,15 @@ import numpy as np
 import pytest
 from mathutils import Matrix
 
+from reactive_anim.blender import compat
 from reactive_anim.blender.bake import bake
 from reactive_anim.blender.character import action_io
 from reactive_anim.blender.impacts import impacts
 from reactive_anim.core.model.skeleton import Motion
-from tests.support.actions import fcurves, keyframes, values_before
+from tests.support.actions import action_of, fcurves, keyframes, values_before
 from tests.support.bake_scene import walk_with_impacts
+from tools.devkit.blender_types import armature_data, as_buffer
+from tools.devkit.operators import addon_ops
 
 FIRST_IMPACT = 41  # walk_with_impacts' first marker
 SKELETON_ROTATIONS = ("rotation_quaternion", "rotation_euler", "rotation_axis_angle")
@@ -28,7 +31,7 @@ def _curve(fc: bpy.types.FCurve) -> tuple:
     """Everything a carried F-curve must keep, read key by key (not the way the copy is made)."""
     keys = [
         (
-            tuple(k.co), tuple(k.handle_left), tuple(k.handle_right), k.handle_left_type, k.handle_right_type,
+            k.co[:], k.handle_left[:], k.handle_right[:], k.handle_left_type, k.handle_right_type,
             k.interpolation, k.easing, k.type, k.back, k.amplitude, k.period,
         )
         for k in fc.keyframe_points
@@ -41,8 +44,8 @@ def _curve(fc: bpy.types.FCurve) -> tuple:
         )
         for m in fc.modifiers
     ]
-    settings = (fc.extrapolation, fc.mute, fc.hide, fc.lock, fc.color_mode, tuple(fc.color), fc.auto_smoothing)
-    samples = [tuple(s.co) for s in fc.sampled_points]
+    settings = (fc.extrapolation, fc.mute, fc.hide, fc.lock, fc.color_mode, fc.color[:], fc.auto_smoothing)
+    samples = [s.co[:] for s in fc.sampled_points]
     return keys, fc.group.name if fc.group else None, settings, modifiers, samples
 
 
@@ -68,7 +71,7 @@ def _add_bones(rig: bpy.types.Object) -> None:
     props at the armature's origin are)."""
     bpy.context.view_layer.objects.active = rig
     bpy.ops.object.mode_set(mode="EDIT")
-    bones = rig.data.edit_bones
+    bones = armature_data(rig).edit_bones
     hand = bones["hand.R"]
     prop = bones.new("prop")
     prop.head, prop.tail, prop.parent = hand.tail, hand.tail + hand.vector * 0.8, hand
@@ -106,7 +109,7 @@ def _character(scene: bpy.types.Scene) -> bpy.types.Object:
     _key(pose["prop"], "rotation_euler", [(1, (0.0, 0.0, 0.0)), (90, (0.5, 0.2, -0.3))])
     _key(pose["ik_target"], "location", [(1, (0.0, 0.0, 0.0)), (50, (0.1, -0.4, 0.2)), (100, (0.0, -0.8, 0.0))])
     _key(pose["ik_target"], "rotation_euler", [(1, (0.0, 0.0, 0.0)), (40, (0.3, 0.0, 1.0))])
-    action = rig.animation_data.action
+    action = action_of(rig)
     loc_x, loc_y, loc_z = _keyed(action, 'pose.bones["ik_target"].location')
     loc_x.extrapolation = "LINEAR"
     loc_y.keyframe_points[1].interpolation, loc_y.keyframe_points[1].easing = "BACK", "EASE_IN"
@@ -114,9 +117,12 @@ def _character(scene: bpy.types.Scene) -> bpy.types.Object:
     loc_y.keyframe_points[0].interpolation, loc_y.keyframe_points[0].period = "ELASTIC", 3.0
     loc_y.keyframe_points[2].type = "BREAKDOWN"
     noise = loc_z.modifiers.new("NOISE")
+    assert isinstance(noise, bpy.types.FModifierNoise)
     noise.strength, noise.scale, noise.phase = 0.2, 7.0, 1.5
     rot_x = _keyed(action, 'pose.bones["ik_target"].rotation_euler')[0]
-    rot_x.modifiers.new("CYCLES").mode_after = "REPEAT_OFFSET"
+    cycles = rot_x.modifiers.new("CYCLES")
+    assert isinstance(cycles, bpy.types.FModifierCycles)
+    cycles.mode_after = "REPEAT_OFFSET"
     rot_x.keyframe_points[1].handle_left_type = "VECTOR"
     return rig
 
@@ -139,7 +145,7 @@ def _played(rig: bpy.types.Object, frames: range) -> dict[str, np.ndarray]:
     played: dict[str, list] = {"object": [], "bones": [], "ik_fk": [], "weapon": []}
     for frame in frames:
         scene.frame_set(frame)
-        pose_bones.foreach_get("matrix", buffer)
+        pose_bones.foreach_get("matrix", as_buffer(buffer))
         world = np.array(rig.matrix_world)
         played["object"].append(world)
         played["bones"].append(world @ buffer.reshape(-1, 4, 4).transpose(0, 2, 1))
@@ -154,14 +160,14 @@ def _played(rig: bpy.types.Object, frames: range) -> dict[str, np.ndarray]:
 
 def test_every_channel_the_bake_does_not_change_is_carried(empty_scene):
     rig = _character(empty_scene)
-    source = rig.animation_data.action
+    source = action_of(rig)
     before = _curves(source)
     skeleton = action_io.armature_skeleton(rig).names
     assert "prop" in skeleton and "ik_target" not in skeleton  # a child of the hand is baked; a root of its own is not
 
-    assert bpy.ops.reactive_anim.bake(armature_name="walk") == {"FINISHED"}
+    assert addon_ops.bake(armature_name="walk") == {"FINISHED"}
 
-    reacted = rig.animation_data.action
+    reacted = action_of(rig)
     after = _curves(reacted)
     carried = {channel for channel in before if not _decided(channel[0], skeleton)}
     assert {path for path, _ in carried} == {
@@ -189,8 +195,9 @@ def test_every_channel_the_bake_does_not_change_is_carried(empty_scene):
     assert rig.pose.bones["prop"].rotation_mode == "QUATERNION" and rig.pose.bones["ik_target"].rotation_mode == "XYZ"
     # Blender 4.4+: one slot, the one the armature plays, holding every curve
     if hasattr(reacted, "slots"):
-        assert len(reacted.slots) == 1 and rig.animation_data.action_slot == reacted.slots[0]
-        bag = reacted.layers[0].strips[0].channelbag(reacted.slots[0])
+        layered = compat.layered(reacted)
+        assert len(layered.slots) == 1 and compat.layered(rig.animation_data).action_slot == layered.slots[0]
+        bag = layered.layers[0].strips[0].channelbag(layered.slots[0])
         assert len(bag.fcurves) == len(after)
 
 
@@ -201,7 +208,7 @@ def test_before_the_first_impact_the_reacted_action_plays_as_the_original(empty_
     skeleton = action_io.armature_skeleton(rig).names
     empty_scene.frame_set(150)
 
-    assert bpy.ops.reactive_anim.bake(armature_name="walk") == {"FINISHED"}
+    assert addon_ops.bake(armature_name="walk") == {"FINISHED"}
 
     reacted = _played(rig, frames)
     before_hit = slice(0, FIRST_IMPACT - 1)  # frames 1-40
@@ -225,21 +232,21 @@ def test_the_character_travels_as_before_whatever_frame_the_playhead_was_on(empt
     assert np.abs(original[-1][:3, 3] - original[0][:3, 3]).max() > 2.9  # it travels
 
     empty_scene.frame_set(1)
-    bpy.ops.reactive_anim.bake(armature_name="walk")
-    first = keyframes(rig.animation_data.action)
+    addon_ops.bake(armature_name="walk")
+    first = keyframes(action_of(rig))
     played = _played(rig, range(1, 265))["object"]
     np.testing.assert_array_equal(played, original)
     for frame in frames:  # the world position, frame by frame
         empty_scene.frame_set(frame)
-        assert tuple(rig.matrix_world.translation) == tuple(original[frame - 1][:3, 3])
+        assert rig.matrix_world.translation[:] == tuple(original[frame - 1][:3, 3])
 
     empty_scene.frame_set(230)  # a rebake from elsewhere (the reacted action plays while it reads)
-    bpy.ops.reactive_anim.bake(armature_name="walk")
-    assert keyframes(rig.animation_data.action) == first
-    bpy.ops.reactive_anim.clear_bake(armature_name="walk")
+    addon_ops.bake(armature_name="walk")
+    assert keyframes(action_of(rig)) == first
+    addon_ops.clear_bake(armature_name="walk")
     empty_scene.frame_set(97, subframe=0.5)  # the object half-way through its travel and turn
-    bpy.ops.reactive_anim.bake(armature_name="walk")
-    assert keyframes(rig.animation_data.action) == first
+    addon_ops.bake(armature_name="walk")
+    assert keyframes(action_of(rig)) == first
     assert (empty_scene.frame_current, empty_scene.frame_subframe) == (97, 0.5)  # the playhead put back
 
 
@@ -249,11 +256,11 @@ def test_a_push_lands_as_the_turned_character_feels_it(empty_scene):
     character that never turns, pushed the same way relative to its body."""
     rig = walk_with_impacts(empty_scene)
     plain = bake.bake_armature(empty_scene, rig)
-    plain_keys = _key_values(rig.animation_data.action)
+    plain_keys = _key_values(action_of(rig))
     bake.clear_bake(rig)
 
     _key(rig, "rotation_euler", [(1, (0.0, 0.0, 0.0)), (264, (0.0, 0.0, 0.9))], index=2)  # the walk's keys: 1-264
-    for point in _keyed(rig.animation_data.action, "rotation_euler")[0].keyframe_points:
+    for point in _keyed(action_of(rig), "rotation_euler")[0].keyframe_points:
         point.interpolation = "LINEAR"  # turned 0.9 * (frame - 1) / 263 at each frame
     for marker in impacts.impact_markers(empty_scene, rig.name):
         data = impacts.impact_data(marker)
@@ -266,7 +273,7 @@ def test_a_push_lands_as_the_turned_character_feels_it(empty_scene):
     # The last push, turned back by a keyed turn, carries its round-off into the simulation, which
     # amplifies it (test_placement): its cost by up to 0.05, its keys by a few cm; before it, 1e-3.
     np.testing.assert_allclose([r.cost for r in turned.reactions], [r.cost for r in plain.reactions], atol=0.1)
-    turned_keys = _key_values(rig.animation_data.action)
+    turned_keys = _key_values(action_of(rig))
     last_push = max(marker.frame for marker in impacts.impact_markers(empty_scene, rig.name))
     for channel, values in plain_keys.items():
         difference = values_before(turned_keys[channel], last_push) - values_before(values, last_push)
@@ -277,7 +284,7 @@ def _key_values(action: bpy.types.Action) -> dict[tuple[str, int], np.ndarray]:
     values = {}
     for fc in fcurves(action):
         co = np.empty(2 * len(fc.keyframe_points), dtype=np.float32)
-        fc.keyframe_points.foreach_get("co", co)
+        fc.keyframe_points.foreach_get("co", as_buffer(co))
         values[(fc.data_path, fc.array_index)] = co
     return values
 
@@ -304,7 +311,7 @@ def _new_fcurve(action: bpy.types.Action, slot: Any, path: str, index: int = 0) 
     """A curve made by hand in the action (in the slot's channel bag, Blender 4.4+)."""
     if not hasattr(action, "layers"):
         return action.fcurves.new(path, index=index)
-    return action.layers[0].strips[0].channelbag(slot).fcurves.new(path, index=index)
+    return compat.layered(action).layers[0].strips[0].channelbag(slot).fcurves.new(path, index=index)
 
 
 def test_write_motion_carries_curves_with_every_setting(empty_scene):
@@ -313,26 +320,33 @@ def test_write_motion_carries_curves_with_every_setting(empty_scene):
     _key(rig, "location", [(1, (0.0, 0.0, 0.0)), (9, (1.0, 2.0, 0.0))])
     _key(rig, '["count"]', [(1, 0), (10, 3)])  # an integer: Blender rounds it between keys
     _key(rig.pose.bones["root"], "scale", [(1, (1.0, 1.0, 1.0)), (4, (1.2, 1.2, 1.2))], group="root")
-    action = rig.animation_data.action
+    action = action_of(rig)
     slot = getattr(rig.animation_data, "action_slot", None)
     x, y, z = _keyed(action, "location")
     generator = x.modifiers.new("GENERATOR")
+    assert isinstance(generator, bpy.types.FModifierGenerator)
     generator.poly_order, generator.use_additive = 2, True
     generator.coefficients = (0.5, 0.25, -0.1)
     envelope = y.modifiers.new("ENVELOPE")
+    assert isinstance(envelope, bpy.types.FModifierEnvelope)
     envelope.reference_value = 0.5
     envelope.control_points.add(3.0)
     envelope.control_points.foreach_set("min", [-1.0])  # in bulk, as action_io._copy_settings sets them
     envelope.control_points.foreach_set("max", [2.0])
     stepped = y.modifiers.new("STEPPED")
+    assert isinstance(stepped, bpy.types.FModifierStepped)
     stepped.frame_step, stepped.use_restricted_range, stepped.frame_start, stepped.frame_end = 2.0, True, 2.0, 7.0
     limits = z.modifiers.new("LIMITS")
+    assert isinstance(limits, bpy.types.FModifierLimits)
     limits.use_max_y, limits.max_y = True, 0.4
-    z.modifiers.new("FNGENERATOR").function_type = "SIN"
+    wave = z.modifiers.new("FNGENERATOR")
+    assert isinstance(wave, bpy.types.FModifierFunctionGenerator)
+    wave.function_type = "SIN"
     z.mute, z.lock, z.hide, z.color_mode, z.color = True, True, True, "AUTO_RAINBOW", (0.2, 0.4, 0.6)
     sampled = _keyed(action, 'pose.bones["root"].scale')[2]
     sampled.convert_to_samples(1, 6)
     offset = sampled.modifiers.new("GENERATOR")
+    assert isinstance(offset, bpy.types.FModifierGenerator)
     offset.use_additive, offset.coefficients = True, (0.1, 0.02)
     ungrouped = _new_fcurve(action, slot, "delta_location", 1)
     ungrouped.keyframe_points.insert(2.0, 0.3)
@@ -343,7 +357,7 @@ def test_write_motion_carries_curves_with_every_setting(empty_scene):
         bpy.context.scene.collection.objects.link(other)
         other.animation_data_create().action = action
         _key(other, "scale", [(1, (1.0, 1.0, 1.0)), (3, (2.0, 2.0, 2.0))])
-        assert len(action.slots) == 2
+        assert len(compat.layered(action).slots) == 2
     before = {c: v for c, v in _curves(action).items() if not _decided(c[0], ["root", "arm"])}
     carried_paths = {"location", '["count"]', 'pose.bones["root"].scale', "delta_location"}
     assert {path for path, _ in before} == carried_paths | ({"scale"} if slot is not None else set())

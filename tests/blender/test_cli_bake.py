@@ -15,6 +15,8 @@ from reactive_anim import cli
 from reactive_anim.blender.bake import bake
 from reactive_anim.blender.character import action_io, bvh_import
 from reactive_anim.blender.impacts import impacts
+from tests.support.actions import action_of
+from tools.devkit.operators import addon_ops
 
 REPO = Path(__file__).resolve().parents[2]
 WALK = REPO / "sample_clips" / "walk.bvh"
@@ -86,11 +88,11 @@ def test_bake_command_bakes_the_good_files_and_reports_the_broken_ones(tmp_path)
 
     bpy.ops.wm.open_mainfile(filepath=str(out_dir / "good.reacted.blend"))
     rig = bpy.data.objects["walk"]
-    assert rig.animation_data.action.name == "walk.reacted"
+    assert action_of(rig).name == "walk.reacted"
     assert bpy.data.actions["walk"].use_fake_user
     assert bake.bake_state(rig).summary.count("(override)") == 2
-    assert bpy.ops.reactive_anim.clear_bake(armature_name="walk") == {"FINISHED"}  # the state survived saving
-    assert rig.animation_data.action.name == "walk" and "walk.reacted" not in bpy.data.actions
+    assert addon_ops.clear_bake(armature_name="walk") == {"FINISHED"}  # the state survived saving
+    assert action_of(rig).name == "walk" and "walk.reacted" not in bpy.data.actions
 
 
 def test_bake_command_writes_beside_the_input_and_never_over_it(tmp_path):
@@ -112,7 +114,7 @@ def test_bake_command_overwrites_the_input_only_when_asked(tmp_path):
     assert done.returncode == 0, done.stderr
     assert sorted(p.name for p in tmp_path.glob("*.blend")) == ["scene.blend"]
     bpy.ops.wm.open_mainfile(filepath=str(scene_file))
-    assert bpy.data.objects["walk"].animation_data.action.name == "walk.reacted"
+    assert action_of(bpy.data.objects["walk"]).name == "walk.reacted"
     assert bpy.data.actions["walk"].use_fake_user
 
 
@@ -139,7 +141,7 @@ def _reacted_positions(path: Path, scene: str, rig: str) -> np.ndarray:
     bpy.ops.wm.open_mainfile(filepath=str(path))
     bpy.context.window.scene = bpy.data.scenes[scene]
     armature = bpy.data.objects[rig]
-    assert armature.animation_data.action.name.endswith(".reacted")
+    assert action_of(armature).name.endswith(".reacted")
     return action_io.read_motion(armature).global_positions()
 
 
@@ -164,7 +166,7 @@ def test_bake_command_bakes_every_scene_with_impact_markers(tmp_path):
     assert _listing(tmp_path) == sorted([*before, "out", "out/alone.reacted.blend", "out/shots.reacted.blend"])
     bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "out" / "shots.reacted.blend"))
     assert bpy.context.scene.name == "Scene"  # the file still opens on its own scene
-    assert bpy.data.objects["walk"].animation_data.action.name == "walk.reacted"
+    assert action_of(bpy.data.objects["walk"]).name == "walk.reacted"
     baked = _reacted_positions(tmp_path / "out" / "shots.reacted.blend", "Shot2", "walk.001")
     expected = _reacted_positions(tmp_path / "out" / "alone.reacted.blend", "Scene", "walk")
     assert baked.shape == expected.shape and np.allclose(baked, expected, atol=1e-5)
@@ -202,7 +204,8 @@ def test_bake_command_fails_a_file_whose_markers_name_a_missing_armature(tmp_pat
 def test_bake_command_refuses_outputs_that_collide_before_baking_anything(tmp_path):
     """Two inputs of the same name from different folders would write one --out-dir file: both are
     refused up front (neither silently replaces the other); the other inputs still bake."""
-    (tmp_path / "a").mkdir(), (tmp_path / "b").mkdir()
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
     first, second = _scene_file(tmp_path / "a" / "shot.blend"), _scene_file(tmp_path / "b" / "shot.blend")
     other = _scene_file(tmp_path / "other.blend")
     out = tmp_path / "out"
@@ -237,7 +240,8 @@ def test_bake_command_on_a_read_only_user_folder_caches_in_the_temporary_folder(
     folder, never in the current folder, no traceback."""
     scene_file = _scene_file(tmp_path / "scene.blend")
     (tmp_path / "not_a_folder").write_text("")
-    (tmp_path / "cwd").mkdir(), (tmp_path / "temp").mkdir()
+    (tmp_path / "cwd").mkdir()
+    (tmp_path / "temp").mkdir()
     before = _listing(tmp_path)
 
     done = _run(

@@ -9,6 +9,7 @@ import numpy as np
 
 from reactive_anim.blender.bake import bake
 from tests.support.bake_scene import walk_with_impacts
+from tools.devkit.operators import addon_ops
 
 BEFORE_FIRST_IMPACT = range(1, 40, 6)  # walk_with_impacts hits first at frame 41
 
@@ -38,17 +39,19 @@ def _moving_empty() -> bpy.types.Object:
 def test_a_child_of_and_an_additive_copy_rotation_are_not_applied_twice(empty_scene):
     rig = walk_with_impacts(empty_scene)
     child_of = rig.pose.bones["pelvis"].constraints.new("CHILD_OF")
+    assert isinstance(child_of, bpy.types.ChildOfConstraint)
     child_of.target = _moving_empty()
     copy = rig.pose.bones["head"].constraints.new("COPY_ROTATION")
+    assert isinstance(copy, bpy.types.CopyRotationConstraint)
     copy.target, copy.mix_mode = child_of.target, "ADD"
     original = {bone: _world(rig, bone, BEFORE_FIRST_IMPACT) for bone in ("pelvis", "head")}
 
-    assert bpy.ops.reactive_anim.bake(armature_name="walk") == {"FINISHED"}
+    assert addon_ops.bake(armature_name="walk") == {"FINISHED"}
     assert child_of.mute and copy.mute
     for bone, expected in original.items():
         assert np.abs(_world(rig, bone, BEFORE_FIRST_IMPACT) - expected).max() < 1e-4, bone
 
-    assert bpy.ops.reactive_anim.clear_bake(armature_name="walk") == {"FINISHED"}
+    assert addon_ops.clear_bake(armature_name="walk") == {"FINISHED"}
     assert not child_of.mute and not copy.mute
     for bone, expected in original.items():
         assert np.abs(_world(rig, bone, BEFORE_FIRST_IMPACT) - expected).max() < 1e-6, bone
@@ -56,10 +59,12 @@ def test_a_child_of_and_an_additive_copy_rotation_are_not_applied_twice(empty_sc
 
 def test_a_rebake_reads_the_original_with_its_constraints(empty_scene):
     rig = walk_with_impacts(empty_scene)
-    rig.pose.bones["pelvis"].constraints.new("CHILD_OF").target = _moving_empty()
-    assert bpy.ops.reactive_anim.bake(armature_name="walk") == {"FINISHED"}
+    child_of = rig.pose.bones["pelvis"].constraints.new("CHILD_OF")
+    assert isinstance(child_of, bpy.types.ChildOfConstraint)
+    child_of.target = _moving_empty()
+    assert addon_ops.bake(armature_name="walk") == {"FINISHED"}
     first = _world(rig, "pelvis", range(1, 264, 7))
-    assert bpy.ops.reactive_anim.bake(armature_name="walk") == {"FINISHED"}
+    assert addon_ops.bake(armature_name="walk") == {"FINISHED"}
     assert np.array_equal(_world(rig, "pelvis", range(1, 264, 7)), first)
     assert bake.bake_state(rig).muted.count('"constraint"') == 1  # listed once, not again by the rebake
 
@@ -71,11 +76,11 @@ def test_a_driver_on_a_keyed_rotation_is_muted_and_restored(empty_scene):
     driver.driver.expression = "0.3"
     unrelated = rig.pose.bones["head"].driver_add("scale", 0)  # not a channel the bake keys
     unrelated.driver.expression = "1.0"
-    assert bpy.ops.reactive_anim.bake(armature_name="walk") == {"FINISHED"}
+    assert addon_ops.bake(armature_name="walk") == {"FINISHED"}
     assert driver.mute and not unrelated.mute
     bpy.context.scene.frame_set(20)
     turned = rig.pose.bones["head"].matrix.to_quaternion()
-    assert bpy.ops.reactive_anim.clear_bake(armature_name="walk") == {"FINISHED"}
+    assert addon_ops.clear_bake(armature_name="walk") == {"FINISHED"}
     assert not driver.mute
     bpy.context.scene.frame_set(20)
     assert rig.pose.bones["head"].matrix.to_quaternion().rotation_difference(turned).angle < 1e-4

@@ -206,6 +206,7 @@ print("RESULT_JSON " + json.dumps(found), flush=True)
 def _load_build_tool() -> ModuleType:
     """tools/build_extension.py as a module (tools/ is not a package)."""
     spec = importlib.util.spec_from_file_location("build_extension", REPO / "tools" / "build_extension.py")
+    assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module  # dataclasses look their module up while the tool loads
     spec.loader.exec_module(module)
@@ -238,7 +239,7 @@ def _blender_runtime(folder: Path) -> Path:
             continue
         seen.add(dist.metadata["Name"].lower())
         for top in {f.parts[0] for f in dist.files or () if f.parts[0] not in ("..", "__pycache__")}:
-            source = Path(dist.locate_file(top))
+            source = Path(str(dist.locate_file(top)))
             if source.exists() and not (folder / top).exists():
                 (folder / top).symlink_to(source, target_is_directory=source.is_dir())
         for line in dist.requires or ():

@@ -17,6 +17,8 @@ from reactive_anim.blender.impacts import impact_ops, impacts, marker_sync
 from reactive_anim.blender.ui import panels, settings
 from reactive_anim.core.model import quat
 from tests.support.bake_scene import walk_with_impacts
+from tools.devkit.blender_types import armature_data, view_3d
+from tools.devkit.operators import addon_ops
 
 
 def _uids(scene: bpy.types.Scene) -> list[str]:
@@ -39,12 +41,10 @@ def test_add_impact_takes_the_direction_from_the_view(empty_scene):
     empty_scene.frame_current = 90
     looking_down_at_it = _view_looking((0.0, 1.0, -1.0))  # from the front, 45 deg above
 
-    bpy.ops.reactive_anim.add_impact(
-        armature_name="walk", bone="head", direction_source="VIEW", view_rotation=looking_down_at_it
-    )
+    addon_ops.add_impact(armature_name="walk", bone="head", direction_source="VIEW", view_rotation=looking_down_at_it)
     flat = impacts.impact_data(impacts.impact_markers(empty_scene, "walk")[1])
     assert np.allclose(flat.direction, (0.0, 1.0, 0.0), atol=1e-6)  # laid flat on the ground
-    bpy.ops.reactive_anim.add_impact(
+    addon_ops.add_impact(
         armature_name="walk", bone="head", direction_source="VIEW", view_rotation=looking_down_at_it, flatten=False,
         frame=91,
     )  # fmt: skip
@@ -59,7 +59,7 @@ def test_a_button_in_the_sidebar_aims_along_its_own_view(empty_scene):
     window = bpy.context.window
     area = next(a for a in window.screen.areas if a.type == "VIEW_3D")
     sidebar = next(r for r in area.regions if r.type == "UI")
-    area.spaces.active.region_3d.view_rotation = _view_looking((-1.0, 0.0, 0.0))
+    view_3d(area).region_3d.view_rotation = _view_looking((-1.0, 0.0, 0.0))
     with bpy.context.temp_override(window=window, area=area, region=sidebar):
         assert bpy.context.region_data is None  # a sidebar has no view of its own
         rotation = impact_ops.view_rotation_of(bpy.context)
@@ -71,17 +71,18 @@ def test_add_impact_defaults_to_the_current_frame_the_active_bone_and_the_panel_
     rig = walk_with_impacts(empty_scene)
     settings.scene_settings(empty_scene).character = rig
     empty_scene.frame_current = 77
-    rig.data.bones.active = rig.data.bones["upper_arm.L"]
+    bones = armature_data(rig).bones
+    bones.active = bones["upper_arm.L"]
 
-    assert bpy.ops.reactive_anim.add_impact(strength=30.0) == {"FINISHED"}
+    assert addon_ops.add_impact(strength=30.0) == {"FINISHED"}
 
     marker = next(m for m in empty_scene.timeline_markers if m.frame == 77)
     props = impacts.impact_data(marker)
     assert (props.armature, props.bone, props.strength) == ("walk", "upper_arm.L", 30.0)
     assert marker.select and sum(m.select for m in empty_scene.timeline_markers) == 1
     assert empty_scene.timeline_markers[settings.scene_settings(empty_scene).active_impact] == marker
-    rig.data.bones.active = None
-    bpy.ops.reactive_anim.add_impact(frame=80)  # no active bone: the chest, by its role
+    bones.active = None
+    addon_ops.add_impact(frame=80)  # no active bone: the chest, by its role
     assert impacts.impact_data(next(m for m in empty_scene.timeline_markers if m.frame == 80)).bone == "chest"
 
 
@@ -91,7 +92,7 @@ def test_edit_aim_jump_and_remove_the_active_impact(empty_scene):
     second = markers["hit_02"]
     uid = impacts.impact_data(second).uid
 
-    assert bpy.ops.reactive_anim.jump_to_impact(uid=uid) == {"FINISHED"}
+    assert addon_ops.jump_to_impact(uid=uid) == {"FINISHED"}
     assert empty_scene.frame_current == 131 and second.select
     assert markers[settings.scene_settings(empty_scene).active_impact] == second
     # edit the fields the panel shows
@@ -102,13 +103,13 @@ def test_edit_aim_jump_and_remove_the_active_impact(empty_scene):
         250.0,
     )
     # aim the active impact (no uid: the list's active row) from a view looking along +X
-    assert bpy.ops.reactive_anim.aim_impact(view_rotation=_view_looking((1.0, 0.0, 0.0))) == {"FINISHED"}
+    assert addon_ops.aim_impact(view_rotation=_view_looking((1.0, 0.0, 0.0))) == {"FINISHED"}
     assert np.allclose(impacts.impact_data(second).direction, (1.0, 0.0, 0.0), atol=1e-6)
     # remove it: the marker and the impact go together
-    assert bpy.ops.reactive_anim.remove_impact() == {"FINISHED"}
+    assert addon_ops.remove_impact() == {"FINISHED"}
     assert uid not in _uids(empty_scene) and "hit_02" not in markers
     with pytest.raises(RuntimeError, match="no impact marker with uid"):
-        bpy.ops.reactive_anim.jump_to_impact(uid=uid)
+        addon_ops.jump_to_impact(uid=uid)
 
 
 @contextmanager
@@ -183,7 +184,7 @@ POLL_MESSAGES = [
 @pytest.mark.parametrize(("name", "message"), POLL_MESSAGES)
 def test_every_operator_says_why_it_cannot_run(empty_scene, name, message):
     with pytest.raises(RuntimeError, match=rf"{name}\.poll\(\) {message}"):
-        getattr(bpy.ops.reactive_anim, name)()
+        getattr(addon_ops, name)()
 
 
 def test_bake_says_add_an_impact_first_on_a_character_without_impacts(empty_scene):
@@ -191,7 +192,7 @@ def test_bake_says_add_an_impact_first_on_a_character_without_impacts(empty_scen
     for marker in list(empty_scene.timeline_markers):
         impacts.remove_impact(empty_scene, marker)
     with pytest.raises(RuntimeError, match=r"bake\.poll\(\) Add an impact first"):
-        bpy.ops.reactive_anim.bake()
+        addon_ops.bake()
 
 
 def test_every_operator_has_a_tooltip_a_poll_and_a_menu_entry():
@@ -220,7 +221,7 @@ def test_what_one_call_is_about_is_not_carried_to_the_next(operator, per_call):
     """An operator invoked from the UI gets its last call's values for every property that is not
     SKIP_SAVE (in a window only: background mode never does it): in a real window the second + hit
     the first impact's bone. The strength, an animator's preference, is carried over."""
-    properties = getattr(bpy.ops.reactive_anim, operator).get_rna_type().properties
+    properties = getattr(addon_ops, operator).get_rna_type().properties
     assert [name for name in per_call if not properties[name].is_skip_save] == []
     if operator == "add_impact":
         assert not properties["strength"].is_skip_save

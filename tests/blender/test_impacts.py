@@ -12,6 +12,8 @@ from reactive_anim.blender.impacts import impacts
 from reactive_anim.core.model.classes import CLASSES
 from reactive_anim.core.model.errors import ImpactError
 from reactive_anim.core.model.impact import Impact
+from tests.support.actions import action_of
+from tools.devkit.operators import addon_ops
 
 WALK = Path(__file__).resolve().parents[2] / "sample_clips" / "walk.bvh"  # 264 frames, keys on frames 1-264
 FORWARD = (0.0, -1.0, 0.0)  # the sample walk walks along -Y
@@ -87,7 +89,9 @@ def test_markers_with_their_data_survive_save_and_reload(empty_scene, tmp_path):
 def test_a_forced_reaction_is_stored_as_its_classes_fixed_id(empty_scene):
     """A .blend holds the enum's number: each class's is its table id (classes.ReactionClass.enum_id,
     never renumbered), not its position, so adding a class changes no saved marker."""
-    items = impacts.REACTIVE_ANIM_PG_impact.bl_rna.properties["reaction"].enum_items
+    reaction = impacts.REACTIVE_ANIM_PG_impact.bl_rna.properties["reaction"]
+    assert isinstance(reaction, bpy.types.EnumProperty)
+    items = reaction.enum_items
     assert {item.identifier: item.value for item in items} == {"auto": 0} | {c.slug: c.enum_id for c in CLASSES}
 
 
@@ -129,20 +133,20 @@ def test_add_impact_refuses_bad_values(empty_scene):
 def test_add_impact_operator_for_scripts(empty_scene):
     _walker()
     empty_scene.frame_current = 77
-    result = bpy.ops.reactive_anim.add_impact(
+    result = addon_ops.add_impact(
         armature_name="walk", bone="head", direction=(0.0, 1.0, 0.0), strength=30.0, reaction="sway_balance"
     )
     assert result == {"FINISHED"}
-    bpy.ops.reactive_anim.add_impact(armature_name="walk", bone="chest", frame=150, marker_name="late")
+    addon_ops.add_impact(armature_name="walk", bone="chest", frame=150, marker_name="late")
     fields = [_fields(m)[:7] for m in impacts.impact_markers(empty_scene, "walk")]
     assert fields == [
         ("hit_01", 77, "walk", "head", (0.0, 1.0, 0.0), 30.0, "sway_balance"),
         ("late", 150, "walk", "chest", (1.0, 0.0, 0.0), 100.0, "auto"),
     ]
     with pytest.raises(RuntimeError, match="armature 'walk' has no bone 'tail'"):
-        bpy.ops.reactive_anim.add_impact(armature_name="walk", bone="tail")
+        addon_ops.add_impact(armature_name="walk", bone="tail")
     with pytest.raises(RuntimeError, match="there is no armature called 'nobody'"):
-        bpy.ops.reactive_anim.add_impact(armature_name="nobody", bone="chest")
+        addon_ops.add_impact(armature_name="nobody", bone="chest")
     assert len(empty_scene.timeline_markers) == 2
 
 
@@ -160,8 +164,8 @@ def test_impacts_follow_their_character_through_a_rename(empty_scene, tmp_path):
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     bpy.ops.wm.open_mainfile(filepath=str(path))
     scene = bpy.context.scene
-    assert bpy.ops.reactive_anim.bake(armature_name="hero") == {"FINISHED"}
-    assert bpy.data.objects["hero"].animation_data.action.name == "walk.reacted"
+    assert addon_ops.bake(armature_name="hero") == {"FINISHED"}
+    assert action_of(bpy.data.objects["hero"]).name == "walk.reacted"
 
 
 def test_an_impact_saved_with_only_its_armature_s_name_still_finds_it(empty_scene):

@@ -11,6 +11,7 @@ from mathutils import Euler
 
 from reactive_anim.blender.impacts import impacts
 from reactive_anim.blender.ui import overlay, settings
+from tools.devkit.blender_types import armature_data
 
 PUSH = (0.0, 1.0, 0.0)  # pushed along +Y: the arrow comes from -Y
 
@@ -21,7 +22,7 @@ def _rig(name: str = "rig") -> bpy.types.Object:
     bpy.context.scene.collection.objects.link(rig)
     bpy.context.view_layer.objects.active = rig
     bpy.ops.object.mode_set(mode="EDIT")
-    edit_bones = rig.data.edit_bones
+    edit_bones = armature_data(rig).edit_bones
     hips = edit_bones.new("hips")
     hips.head, hips.tail = (0.0, 0.0, 1.0), (0.0, 0.0, 1.2)
     chest = edit_bones.new("chest")
@@ -162,7 +163,8 @@ def test_missing_bone_or_armature_is_skipped(empty_scene):
     # remove the chest bone
     bpy.context.view_layer.objects.active = rig
     bpy.ops.object.mode_set(mode="EDIT")
-    rig.data.edit_bones.remove(rig.data.edit_bones["chest"])
+    edit_bones = armature_data(rig).edit_bones
+    edit_bones.remove(edit_bones["chest"])
     bpy.ops.object.mode_set(mode="OBJECT")
     arrows = overlay.impact_arrows(scene, 50)
     assert len(arrows) == 2

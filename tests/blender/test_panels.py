@@ -12,7 +12,8 @@ import bpy
 from reactive_anim.blender.bake import bake, worker
 from reactive_anim.blender.ui import panels, settings
 from tests.support.bake_scene import walk_with_impacts
-from tests.support.ui_recorder import Recorder, draw
+from tests.support.ui_recorder import Recorder, draw, draw_item, filter_items
+from tools.devkit.operators import addon_ops
 
 UILST_FLT_ITEM = 1 << 30  # UIList.bitflag_filter_item in Blender's source (RNA reports no default)
 
@@ -59,7 +60,7 @@ def test_a_character_with_impacts(empty_scene):
 def test_after_a_bake_the_panel_shows_each_impact_and_says_when_it_is_out_of_date(empty_scene):
     rig = walk_with_impacts(empty_scene)
     settings.scene_settings(empty_scene).character = rig
-    bpy.ops.reactive_anim.bake(armature_name="walk")
+    addon_ops.bake(armature_name="walk")
 
     texts = _all_panels(bpy.context).texts()
     assert "41 hit_01 (chest): step_forward" in texts and "131 hit_02 (chest): sway_balance" in texts
@@ -76,7 +77,7 @@ def test_after_a_bake_the_panel_shows_each_impact_and_says_when_it_is_out_of_dat
 def test_a_preview_offers_accept_and_discard(empty_scene):
     rig = walk_with_impacts(empty_scene)
     settings.scene_settings(empty_scene).character = rig
-    bpy.ops.reactive_anim.preview(armature_name="walk")
+    addon_ops.preview(armature_name="walk")
     drawn = _all_panels(bpy.context)
     assert {"reactive_anim.accept_preview", "reactive_anim.discard_preview"} <= set(drawn.operators())
     assert "Preview" in drawn.texts() and "41 hit_01 (chest): step_forward" in drawn.texts()
@@ -103,15 +104,14 @@ def test_the_impact_list_shows_the_characters_impacts_in_frame_order(empty_scene
     settings.scene_settings(empty_scene).character = rig
     ui_list = type("List", (), {"bitflag_filter_item": UILST_FLT_ITEM})()
 
-    flags, order = panels.REACTIVE_ANIM_UL_impacts.filter_items(ui_list, bpy.context, empty_scene, "timeline_markers")
+    flags, order = filter_items(panels.REACTIVE_ANIM_UL_impacts, ui_list, bpy.context, empty_scene, "timeline_markers")
 
     markers = list(empty_scene.timeline_markers)
     shown = [m.name for m, flag in zip(markers, flags, strict=True) if flag]
     assert sorted(shown) == ["hit_01", "hit_02", "hit_03"]
     by_position = sorted(range(len(markers)), key=lambda k: order[k])
     assert [markers[k].name for k in by_position if flags[k]] == ["hit_02", "hit_03", "hit_01"]
-    row = Recorder()
-    panels.REACTIVE_ANIM_UL_impacts.draw_item(ui_list, bpy.context, row, empty_scene, markers[1], 0, None, "", 1)
+    row = draw_item(panels.REACTIVE_ANIM_UL_impacts, ui_list, bpy.context, empty_scene, markers[1], 1)
     assert ("prop", "name") in row.items and ("label", "131") in row.items and ("label", "chest") in row.items
     assert row.operators() == ["reactive_anim.jump_to_impact"]
 

@@ -14,17 +14,19 @@ from mathutils import Matrix
 
 from reactive_anim.blender.bake import bake
 from reactive_anim.blender.impacts import impacts
-from tests.support.actions import fcurves, values_before
+from tests.support.actions import action_of, fcurves, values_before
 from tests.support.bake_scene import walk_with_impacts
+from tools.devkit.blender_types import as_buffer
+from tools.devkit.operators import addon_ops
 
 
 def _bake(rig: bpy.types.Object) -> tuple[list, dict[tuple[str, int], np.ndarray]]:
     """The bake's per-impact rows (class, clip, cost, ...) and every key of the reacted action."""
-    assert bpy.ops.reactive_anim.bake(armature_name=rig.name) == {"FINISHED"}
+    assert addon_ops.bake(armature_name=rig.name) == {"FINISHED"}
     keys = {}
-    for fc in fcurves(rig.animation_data.action):
+    for fc in fcurves(action_of(rig)):
         co = np.empty(len(fc.keyframe_points) * 2)
-        fc.keyframe_points.foreach_get("co", co)
+        fc.keyframe_points.foreach_get("co", as_buffer(co))
         keys[(fc.data_path, fc.array_index)] = co
     return json.loads(bake.bake_state(rig).rows), keys
 
@@ -38,7 +40,7 @@ def test_the_same_reactions_wherever_the_character_stands(empty_scene, where, lo
     rows, keys = _bake(rig)
     bpy.context.scene.frame_set(30)
     pelvis = rig.pose.bones["pelvis"].head.copy()  # the object at the origin: world = object space
-    assert bpy.ops.reactive_anim.clear_bake(armature_name=rig.name) == {"FINISHED"}
+    assert addon_ops.clear_bake(armature_name=rig.name) == {"FINISHED"}
 
     rig.location, rig.rotation_euler = location, (0.0, 0.0, turn)
     spin = Matrix.Rotation(turn, 3, "Z")

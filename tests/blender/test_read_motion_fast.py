@@ -8,20 +8,33 @@ from __future__ import annotations
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import bpy
 import numpy as np
 import pytest
 
+from reactive_anim.blender import compat
 from reactive_anim.blender.character import action_io, armature_build, bvh_import
 from reactive_anim.core.model import quat
 from reactive_anim.core.model.skeleton import Skeleton
-from tests.support.actions import fcurves
+from tests.support.actions import action_of, fcurves
 from tests.support.mocap import require_mocap
+from tools.devkit.blender_types import armature_data
+
+if TYPE_CHECKING:
+    from bpy._typing.rna_enums import ObjectRotationModeItems
 
 WALK = Path(__file__).resolve().parents[2] / "sample_clips" / "walk.bvh"
 FRAMES = (0, 12)  # one frame before the first key, three after the last (constant extrapolation)
-MODES = ["XYZ", "ZXY", "YZX", "AXIS_ANGLE", "QUATERNION", "ZYX"]  # one per bone of the test rig
+MODES: list[ObjectRotationModeItems] = [
+    "XYZ",
+    "ZXY",
+    "YZX",
+    "AXIS_ANGLE",
+    "QUATERNION",
+    "ZYX",
+]  # one per bone of the test rig
 
 
 @contextmanager
@@ -78,7 +91,9 @@ def euler_rig() -> bpy.types.Object:
     its parent's tail, rolled bones, a rotated and scaled object; keys on frames 1, 4, 5, 9 with
     linear and constant segments, location keyed on the root and the loose child."""
     offsets = [(0, 0, 1), (0, 0.1, 0.3), (0.2, 0, 0.2), (0.1, 0.1, 0), (0, 0, 0.2), (-0.2, 0, 0.1)]
-    skeleton = Skeleton([f"b{j}" for j in range(6)], [-1, 0, 1, 2, 1, 4], np.array(offsets), {3: np.array([0, 0.1, 0])})
+    skeleton = Skeleton(
+        [f"b{j}" for j in range(6)], np.array([-1, 0, 1, 2, 1, 4]), np.array(offsets), {3: np.array([0, 0.1, 0])}
+    )
     tilted = quat.to_matrix(quat.normalize(np.array([0.9, 0.2, -0.3, 0.25])))
     rig = armature_build.build_armature(
         bpy.context, skeleton, "euler", file_axes=tilted, file_unit=1.0, translated_joints={5}
@@ -91,17 +106,17 @@ def euler_rig() -> bpy.types.Object:
         pose_bone.rotation_mode = mode
         for frame in (1, 4, 5, 9):
             if mode == "QUATERNION":
-                pose_bone.rotation_quaternion = rng.normal(size=4)  # not unit: Blender normalises
+                pose_bone.rotation_quaternion = rng.normal(size=4).tolist()  # not unit: Blender normalises
             elif mode == "AXIS_ANGLE":
                 pose_bone.rotation_axis_angle = rng.normal(size=4)
             else:
-                pose_bone.rotation_euler = rng.uniform(-2, 2, size=3)
+                pose_bone.rotation_euler = rng.uniform(-2, 2, size=3).tolist()
             pose_bone.keyframe_insert({"QUATERNION": "rotation_quaternion", "AXIS_ANGLE": "rotation_axis_angle"}.get(
                 mode, "rotation_euler"), frame=frame)  # fmt: skip
             if pose_bone.name in ("b0", "b5"):
-                pose_bone.location = rng.normal(scale=0.1, size=3)
+                pose_bone.location = rng.normal(scale=0.1, size=3).tolist()
                 pose_bone.keyframe_insert("location", frame=frame)
-    for k, fcurve in enumerate(fcurves(rig.animation_data.action)):
+    for k, fcurve in enumerate(fcurves(action_of(rig))):
         for point in fcurve.keyframe_points:
             point.interpolation = "CONSTANT" if k % 3 == 0 else "LINEAR"
     return rig
@@ -109,7 +124,8 @@ def euler_rig() -> bpy.types.Object:
 
 def test_euler_and_axis_angle_rig_reads_directly():
     rig = euler_rig()
-    assert not rig.data.bones["b5"].use_connect and rig.data.bones["b1"].use_connect
+    bones = armature_data(rig).bones
+    assert not bones["b5"].use_connect and bones["b1"].use_connect
     assert took_the_direct_way(read_both_ways(rig, frame_range=FRAMES))
 
 
@@ -121,7 +137,7 @@ def test_a_connected_bones_location_is_ignored_both_ways():
 
 def test_bezier_keys_read_directly_on_their_frames_and_evaluated_between():
     rig = euler_rig()
-    for fcurve in fcurves(rig.animation_data.action):
+    for fcurve in fcurves(action_of(rig)):
         for point in fcurve.keyframe_points:
             point.interpolation = "BEZIER"
         fcurve.update()
@@ -132,6 +148,7 @@ def test_bezier_keys_read_directly_on_their_frames_and_evaluated_between():
 def test_a_rig_with_a_constraint_is_evaluated():
     rig = euler_rig()
     constraint = rig.pose.bones["b2"].constraints.new("LIMIT_ROTATION")
+    assert isinstance(constraint, bpy.types.LimitRotationConstraint)
     constraint.use_limit_x = constraint.use_limit_z = True
     constraint.owner_space = "LOCAL"
     assert not took_the_direct_way(read_both_ways(rig, frame_range=FRAMES))
@@ -159,7 +176,7 @@ def test_a_scene_that_remaps_time_is_evaluated():
 @pytest.mark.parametrize("change", ["linear extrapolation", "muted curve", "modifier"])
 def test_curves_it_cannot_evaluate_are_evaluated_by_blender(change):
     rig = euler_rig()
-    fcurve = next(fc for fc in fcurves(rig.animation_data.action) if fc.data_path.endswith(".location"))
+    fcurve = next(fc for fc in fcurves(action_of(rig)) if fc.data_path.endswith(".location"))
     if change == "linear extrapolation":
         fcurve.extrapolation = "LINEAR"
     elif change == "muted curve":
@@ -172,9 +189,10 @@ def test_curves_it_cannot_evaluate_are_evaluated_by_blender(change):
 @pytest.mark.skipif(bpy.app.version < (4, 4), reason="action slots came with Blender 4.4")
 def test_only_the_playing_slots_curves_are_read():
     rig = euler_rig()
-    action = rig.animation_data.action
-    other = action.slots.new(id_type="OBJECT", name="other")
-    bag = action.layers[0].strips[0].channelbag(other, ensure=True)
+    action = action_of(rig)
+    layered = compat.layered(action)
+    other = layered.slots.new(id_type="OBJECT", name="other")
+    bag = layered.layers[0].strips[0].channelbag(other, ensure=True)
     points = bag.fcurves.new('pose.bones["b2"].rotation_euler', index=0).keyframe_points
     points.insert(1, 2.5)
     assert took_the_direct_way(read_both_ways(rig, frame_range=FRAMES))

@@ -13,7 +13,9 @@ import pytest
 from reactive_anim.blender.bake import bake, bake_ops
 from reactive_anim.blender.character import bvh_import
 from reactive_anim.blender.impacts import impacts
+from tests.support.actions import action_of
 from tests.support.bake_scene import FORWARD, WALK, blend_snapshot, walk_with_impacts
+from tools.devkit.operators import addon_ops
 
 
 @pytest.fixture
@@ -35,7 +37,7 @@ def assert_refused(results: list, expected: str, **options) -> None:
     """The bake operator returns CANCELLED with an error matching `expected`, changing nothing."""
     before = blend_snapshot()
     with pytest.raises(RuntimeError, match=expected):
-        bpy.ops.reactive_anim.bake(**options)
+        addon_ops.bake(**options)
     assert results == [{"CANCELLED"}]
     assert blend_snapshot() == before
 
@@ -48,14 +50,15 @@ def _linked_hero(tmp_path: Path) -> bpy.types.Object:
     bpy.ops.wm.read_factory_settings(use_empty=True)
     with bpy.data.libraries.load(str(library), link=True) as (_, linked):
         linked.objects = ["hero"]
-    hero = linked.objects[0]
+    hero = linked.objects[0]  # the names given become the objects loaded
+    assert isinstance(hero, bpy.types.Object)
     bpy.context.scene.collection.objects.link(hero)
     return hero
 
 
 def test_a_linked_character_is_refused(tmp_path, bake_results):
     hero = _linked_hero(tmp_path)
-    assert hero.library is not None and hero.animation_data.action.name == "walk"
+    assert hero.library is not None and action_of(hero).name == "walk"
     impacts.add_impact(bpy.context.scene, hero, "chest", 41, FORWARD, 120.0, "step_forward")
 
     assert_refused(
@@ -73,14 +76,14 @@ def test_a_library_override_bakes_and_keeps_its_bake_after_reload(tmp_path, bake
     assert override.library is None and override.data.library is not None  # its armature data stays linked
     impacts.add_impact(bpy.context.scene, override, "chest", 41, FORWARD, 120.0, "step_forward")
 
-    assert bpy.ops.reactive_anim.bake() == {"FINISHED"}  # the override, not the linked object it overrides
+    assert addon_ops.bake() == {"FINISHED"}  # the override, not the linked object it overrides
     assert bake_results == [{"FINISHED"}] and override.animation_data.action.name == "walk.reacted"
 
     shot = tmp_path / "shot.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(shot))
     bpy.ops.wm.open_mainfile(filepath=str(shot))
     reloaded = next(ob for ob in bpy.data.objects if ob.override_library is not None)
-    assert reloaded.animation_data.action.name == "walk.reacted"
+    assert action_of(reloaded).name == "walk.reacted"
 
 
 @pytest.mark.parametrize(
@@ -149,7 +152,7 @@ def test_a_reaction_this_version_does_not_know_is_refused(empty_scene, bake_resu
 def test_motion_in_nla_strips_is_explained(empty_scene, bake_results):
     rig = walk_with_impacts(empty_scene)
     adt = rig.animation_data
-    adt.nla_tracks.new().strips.new("walk_strip", 1, adt.action)
+    adt.nla_tracks.new().strips.new("walk_strip", 1, action_of(rig))
     adt.action = None
     expected = (
         r"armature 'walk' plays its motion from NLA strips \(walk_strip\), not from an action: bake them into one "
@@ -157,7 +160,7 @@ def test_motion_in_nla_strips_is_explained(empty_scene, bake_results):
     )
     before = blend_snapshot()
     with pytest.raises(RuntimeError, match=r"bake.poll\(\) " + expected):  # the button's tooltip says it
-        bpy.ops.reactive_anim.bake(armature_name="walk")
+        addon_ops.bake(armature_name="walk")
     assert bake_results == [] and blend_snapshot() == before
 
     bvh_import.import_bvh(bpy.context, WALK, name="other")  # another character with an action: the poll passes

@@ -32,8 +32,9 @@ ROLES = {
 
 def skeleton() -> Skeleton:
     # End sites: the toe tips on the floor, the head's crown.
-    return Skeleton(NAMES, PARENTS, OFFSETS, end_sites={4: np.array([0, -0.05, -0.01]), 8: np.array([0, -0.05, -0.01]),
-                                                        12: np.array([0, 0, 0.15])})  # fmt: skip
+    return Skeleton(NAMES, np.asarray(PARENTS), np.asarray(OFFSETS),
+                    end_sites={4: np.array([0, -0.05, -0.01]), 8: np.array([0, -0.05, -0.01]),
+                               12: np.array([0, 0, 0.15])})  # fmt: skip
 
 
 def standing(frames: int, sk: Skeleton | None = None) -> Motion:
@@ -135,11 +136,13 @@ def test_an_end_site_under_the_floor_counts_and_a_ground_root_does_not() -> None
     the feet's floor (Bandai Namco's joint_Root), is no body part."""
     sk = skeleton()
     tips = {**sk.end_sites, 4: sk.end_sites[4] + np.array([0, 0, -0.02])}
-    series = bl.profile(standing(3, Skeleton(NAMES, PARENTS, OFFSETS, end_sites=tips)), ROLES, 0.0)
+    series = bl.profile(
+        standing(3, Skeleton(NAMES, np.asarray(PARENTS), np.asarray(OFFSETS), end_sites=tips)), ROLES, 0.0
+    )
     assert series.depth.max() == pytest.approx(0.02, abs=1e-9)
     # the ground bone 5 cm under the floor, the pelvis 0.95 m over it: the toe tips on the floor
     offsets = [(0, 0, -0.05), (0, 0, 0.95)] + OFFSETS[1:]
-    grounded = Skeleton(["ground"] + NAMES, [-1] + [p + 1 for p in PARENTS], offsets,
+    grounded = Skeleton(["ground"] + NAMES, np.asarray([-1] + [p + 1 for p in PARENTS]), np.asarray(offsets),
                         end_sites={j + 1: off for j, off in sk.end_sites.items()})  # fmt: skip
     motion = standing(3, grounded)
     floor = floor_of(motion)

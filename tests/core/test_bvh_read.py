@@ -13,6 +13,8 @@ from reactive_anim.core.model.errors import BVHError
 from tests.support.mocap import MOCAP, mocap_files, require_mocap
 
 ORDERS = ["".join(p) for p in itertools.permutations("XYZ")]
+Vec3 = tuple[float, float, float]
+Joint = tuple[str, int, Vec3, list[str], Vec3 | None]  # a make_bvh joint: name, parent, offset, channels, end site
 
 
 # ---------------------------------------------------------------------------------------------
@@ -51,7 +53,7 @@ def parse(text, **kw):
     return bvh.parse_bvh(text.encode("utf-8") if isinstance(text, str) else text, name="test.bvh", **kw)
 
 
-def load(text, unit=1.0, up="Z"):
+def load(text, unit: float | str = 1.0, up="Z"):
     """Motion from BVH text; by default without unit or axis conversion, to check channel semantics."""
     return bvh.to_motion(parse(text), unit=unit, up=up)
 
@@ -184,6 +186,7 @@ def test_partial_position_channels_and_root_without_positions():
     ]
     m = load(make_bvh(joints, [[30.0, 4.0, 5.0], [-30.0, 6.0, 7.0]]))
     np.testing.assert_array_equal(m.root_pos, [[1.0, 2.0, 3.0]] * 2)  # no position channels: at OFFSET
+    assert m.local_pos is not None
     np.testing.assert_array_equal(m.local_pos[:, 1], [[4.0, 5.0, 0.0], [6.0, 7.0, 0.0]])
     assert_same_rotation(m.local_rot[:, 0], np.stack([q_axis("Y", 30.0), q_axis("Y", -30.0)]))
 
@@ -198,7 +201,7 @@ def test_joints_without_rotation_channels_stay_at_rest():
 def test_every_rotation_order_per_joint(up):
     """A chain with one joint per order, all in one file; each joint's rotation is built by hand."""
     rng = np.random.default_rng(3)
-    joints = [
+    joints: list[Joint] = [
         (f"J{k}_{order}", k - 1, (0.0, 1.0, 0.0), [f"{c}rotation" for c in order], None)
         for k, order in enumerate(ORDERS)
     ]

@@ -176,6 +176,7 @@ def test_a_take_opening_on_a_calibration_pose_keeps_its_reactions_on_its_floor(l
     roles = assign_roles(take.skeleton)
     reaction = react(take, Impact(560, roles["chest"], (1.0, 0.0, 0.0), 100.0), library, classifier)
     frames = slice(reaction.frame_c, reaction.end_frame + 1)
+    assert reaction.motion is not None
     pos, rot = reaction.motion.global_transforms()
     lowest = min(
         retarget.lowest_foot_point(take.skeleton, take.skeleton.index(roles[f"ankle_{s}"]), pos, rot)[frames].min()

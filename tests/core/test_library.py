@@ -135,6 +135,7 @@ def test_editing_a_clip_or_the_manifest_invalidates(small_library: Path, tmp_pat
 
 def test_damaged_cache_is_rebuilt(small_library: Path, tmp_path: Path) -> None:
     lib = load_library(small_library, cache_dir=tmp_path / "cache")
+    assert lib.cache_path is not None
     lib.cache_path.write_bytes(b"not an npz")
     again = load_library(small_library, cache_dir=tmp_path / "cache")
     assert not again.loaded_from_cache and np.array_equal(again.rot, lib.rot)
@@ -206,7 +207,9 @@ def test_clip_shorter_than_the_window_names_the_clip(tmp_path: Path) -> None:
 
 
 def test_skeleton_without_roles_names_the_clip(tmp_path: Path) -> None:
-    skeleton = Skeleton(["Hips", "Spine", "Head"], [-1, 0, 1], [[0, 0, 1.0], [0, 0, 0.3], [0, 0, 0.4]])
+    skeleton = Skeleton(
+        ["Hips", "Spine", "Head"], np.asarray([-1, 0, 1]), np.asarray([[0, 0, 1.0], [0, 0, 0.3], [0, 0, 0.4]])
+    )
     frames = 30
     motion = Motion(skeleton, 30.0, np.zeros((frames, 3)), quat.identity((frames, 3)))
     bvh.write_bvh(tmp_path / "stick.bvh", motion)

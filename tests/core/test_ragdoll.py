@@ -113,7 +113,7 @@ def test_missing_role_raises_skeleton_error(sample_walk):
     remap = {old: new for new, old in enumerate(keep)}
     armless = Skeleton(
         names=[skeleton.names[j] for j in keep],
-        parents=[remap.get(int(skeleton.parents[j]), -1) for j in keep],
+        parents=np.asarray([remap.get(int(skeleton.parents[j]), -1) for j in keep]),
         offsets=skeleton.offsets[keep],
     )
     with pytest.raises(SkeletonError, match="shoulder_l"):

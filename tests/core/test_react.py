@@ -51,6 +51,7 @@ def test_an_override_forces_the_class_and_f_is_the_clips_pose(walk, library, rag
     r = react(walk, impact, library, ragdoll=ragdoll)
     assert (r.reaction_class, r.scope) == ("step_forward", "step_forward")
     out = r.motion
+    assert out is not None
     assert np.array_equal(out.local_rot[:B], walk.local_rot[:B]) and np.array_equal(out.root_pos[:B], walk.root_pos[:B])
     clip = place(library.clip_motion(r.clip, walk.fps), *r.placement)
     frame_e = round((r.jump_frame + library.window - 1) / library.fps * walk.fps)
@@ -68,6 +69,7 @@ def test_the_transition_has_no_velocity_step_at_c_or_f(walk, library, ragdoll) -
     the input walk's own frame-to-frame changes do (the fade's ends are flat)."""
     impact = Impact(B, "chest", tuple(forward(walk, B)), 120.0, reaction="step_forward")
     r = react(walk, impact, library, ragdoll=ragdoll)
+    assert r.motion is not None
     rot = r.motion.local_rot
     speed = quat.angle_between(rot[1:], rot[:-1]) * walk.fps  # (T-1, J) rad/s
     jumps = np.abs(np.diff(speed, axis=0)).max(axis=1)  # per frame, the largest change of any joint
@@ -87,6 +89,7 @@ def test_a_fall_chains_its_get_up_and_a_stumble_resumes_the_walk(walk, library, 
     for r in (fall, stumble):
         # From F on everything is spliced (clip, get-up, resumed walk): no root jump there. (In BC and
         # CD the push itself may move the pelvis at 4 m/s: 2.6 m/s of J/M on a 1.3 m/s walk.)
+        assert r.motion is not None
         speed = np.linalg.norm(np.diff(r.motion.root_pos[r.frame_f :], axis=0), axis=1) * walk.fps
         assert speed.max() < 4.0, "a root jump: the root moved faster than 4 m/s between two frames"
         assert r.motion.num_frames >= walk.num_frames
@@ -125,6 +128,7 @@ def test_a_pushed_walker_walks_on_once_its_step_has_landed(walk, library, ragdol
             r = react(walk, Impact(frame, "chest", tuple(sign * forward(walk, frame)), 40.0), library, classifier,
                       ragdoll=ragdoll)  # fmt: skip
             assert not r.reaction_class.startswith("fall_") and r.resumed_at is not None, r.reaction_class
+            assert r.motion is not None
             speed = bl.horizontal_speed(r.motion.global_positions()[:, pelvis], walk.fps)
             after_f = bl.longest_still(speed[r.frame_f : r.end_frame + round(0.5 * walk.fps)], walk.fps)
             assert after_f < 0.2, (frame, sign, r.clip, after_f)
@@ -146,6 +150,7 @@ def test_nothing_goes_under_the_floor_in_hard_pushes(library, take, frame, side)
     direction = forward_axis if side == "behind" else -left
     r = react(motion, Impact(frame, ragdoll.roles["chest"], tuple(direction), 300.0), library, load_classifier(),
               ragdoll=ragdoll)  # fmt: skip
+    assert r.motion is not None
     pos, rot = r.motion.global_transforms()
     points = np.concatenate([pos[:, 1:], bl.end_site_positions(r.motion, pos, rot)], axis=1)[frame:]
     depth = bl.lowest_floor(motion, ragdoll.roles) - points[..., 2].min()
@@ -156,6 +161,7 @@ def test_same_input_same_output(walk, library, ragdoll) -> None:
     impact = Impact(B, "pelvis", (0.3, 1.0, 0.0), 150.0)
     a, b = react(walk, impact, library, ragdoll=ragdoll), react(walk, impact, library, ragdoll=ragdoll)
     assert a.clip == b.clip and a.jump_frame == b.jump_frame and a.cost == b.cost
+    assert a.motion is not None and b.motion is not None
     assert np.array_equal(a.motion.local_rot, b.motion.local_rot) and np.array_equal(
         a.motion.root_pos, b.motion.root_pos
     )
@@ -321,6 +327,7 @@ def test_a_push_on_a_character_sitting_on_the_floor_starts_from_its_pose(library
     assert sitting.global_positions()[123, hips, 2] < 0.2  # on the floor when the chest is pushed
     pushed = react(sitting, Impact(123.0, "Chest", (-0.712, 0.596, -0.371), 39.1), library, load_classifier(),
                    source=motion)  # fmt: skip
+    assert pushed.motion is not None
     rise = pushed.motion.global_positions()[123:134, hips, 2] - sitting.global_positions()[123, hips, 2]
     assert rise.max() < 0.15, rise.max()
     # pushed in the last frames of a take that ends sitting: C lies past its end, where the last
@@ -357,9 +364,11 @@ def test_a_body_going_down_at_c_falls_instead_of_standing_up(library) -> None:
     settings = ReactionSettings(transition=0.33)
     crouched = react(motion, Impact(80.0, "UpperLeg_L", (0.6, 0.77, 0.21), 150.0), library, load_classifier(),
                      settings).motion  # fmt: skip
+    assert crouched is not None
     pushed = react(crouched, Impact(90.0, "Hand_L", (-0.96, 0.24, 0.11), 60.0), library, Sure("sway_balance"),
                    settings, source=motion)  # fmt: skip
     assert pushed.going_down and pushed.reaction_class.startswith("fall_")
+    assert pushed.motion is not None
     hips = pushed.motion.global_positions()[:, pushed.motion.skeleton.index("Hips"), 2]
     assert hips[pushed.frame_c : pushed.frame_f + 1].max() < 0.7  # standing: 0.89
     assert hips[pushed.frame_f :].min() < 0.25 and pushed.chained is not None

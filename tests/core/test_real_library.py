@@ -131,6 +131,7 @@ def test_a_chain_with_frames_plays_from_that_frame(walk, ragdoll, falls) -> None
     # lifted onto it, and hands and feet by their IK: the trunk's pose is the cast clip's).
     overlap = round(ReactionSettings().chain_blend * walk.fps)
     resume = round(falls.window * walk.fps / falls.fps)
+    assert reaction.motion is not None
     played = _trunk_rise(reaction.motion, ragdoll.roles)[seam + overlap : reaction.end_frame + 1 - resume]
     assert np.allclose(played, _trunk_rise(getup, ragdoll.roles)[overlap : getup.num_frames - resume], atol=1e-6)
 
@@ -151,6 +152,7 @@ def test_a_calibration_first_frame_is_never_played_or_searched(tmp_path, walk, r
         listed = _library(tmp_path, [{"file": face, "class": "fall_forward_hands", "frames": [1, 725]}], [])
         assert np.array_equal(library.pos_local, listed.pos_local) and np.array_equal(library.rot, listed.rot)
     reaction, _, seam = _fall_and_get_up(walk, ragdoll, library)
+    assert reaction.motion is not None
     pelvis = _pelvis_height(reaction.motion, ragdoll.roles)
     fade = pelvis[seam : seam + round(ReactionSettings().chain_blend * walk.fps) + 1]
     assert fade.max() - pelvis[seam] < 0.03, fade  # not lifted (0.8 m with the calibration frame)

@@ -72,7 +72,7 @@ REPRESENTATIVES = {
 def _skeleton_of(path) -> Skeleton:
     """A real file's hierarchy in its own units and axes (roles need no conversion)."""
     data = bvh.parse_bvh(path)
-    return Skeleton(data.names, data.parents, data.offsets)
+    return Skeleton(data.names, np.asarray(data.parents), data.offsets)
 
 
 def _dataset(path) -> str:
@@ -192,26 +192,29 @@ def test_roles_survive_reading_to_metres_z_up():
 # Synthetic skeletons
 
 
-def _build(joints: list[tuple[str, str | None, tuple[float, float, float]]]) -> Skeleton:
+Row = tuple[str, str | None, tuple[float, float, float]]  # a joint: name, parent's name, offset
+
+
+def _build(joints: list[Row]) -> Skeleton:
     """Skeleton from (name, parent name, offset in metres, Z up, +Y forward, +X left) rows."""
     names = [name for name, _, _ in joints]
     parents = [-1 if parent is None else names.index(parent) for _, parent, _ in joints]
-    return Skeleton(names, parents, [offset for _, _, offset in joints])
+    return Skeleton(names, np.asarray(parents), np.asarray([offset for _, _, offset in joints]))
 
 
-def _rows(skeleton: Skeleton) -> list[tuple[str, str | None, tuple[float, float, float]]]:
+def _rows(skeleton: Skeleton) -> list[Row]:
     """The (name, parent name, offset) rows of a skeleton, to edit and rebuild."""
     parents = [None if p < 0 else skeleton.names[p] for p in skeleton.parents]
     return list(zip(skeleton.names, parents, map(tuple, skeleton.offsets), strict=True))
 
 
-def _mirror(rows, left: str, right: str):
+def _mirror(rows: list[Row], left: str, right: str) -> list[Row]:
     """The right-hand rows of a left limb: names with `left` swapped for `right`, x negated."""
 
-    def swap(name):
-        return None if name is None else name.replace(left, right)
+    def swap(name: str) -> str:
+        return name.replace(left, right)
 
-    return [(swap(n), swap(p), (-o[0], o[1], o[2])) for n, p, o in rows]
+    return [(swap(n), None if p is None else swap(p), (-o[0], o[1], o[2])) for n, p, o in rows]
 
 
 # Offsets below the hip joint: knee and ankle straight down, then the toe and a toe tip forward.
@@ -224,10 +227,11 @@ def _humanoid(
 ) -> Skeleton:  # fmt: skip
     """A standing humanoid facing +Y: a spine up Z, arms out along +X (left) and -X, legs down."""
     chain = [root] + spine + neck + head_parts
-    rows = [(root, None, (0.0, 0.0, 1.0))] + [(name, chain[i], (0.0, 0.0, 0.12)) for i, name in enumerate(chain[1:])]
-    arm_rows = [(arm[0], spine[-1], (0.04, 0.0, 0.1))]
+    rows: list[Row] = [(root, None, (0.0, 0.0, 1.0))]
+    rows += [(name, chain[i], (0.0, 0.0, 0.12)) for i, name in enumerate(chain[1:])]
+    arm_rows: list[Row] = [(arm[0], spine[-1], (0.04, 0.0, 0.1))]
     arm_rows += [(name, arm[i], (0.15 + 0.1 * i, 0.0, 0.0)) for i, name in enumerate(arm[1:])]
-    leg_rows = [(leg[0], root, (0.1, 0.0, -0.05))]
+    leg_rows: list[Row] = [(leg[0], root, (0.1, 0.0, -0.05))]
     leg_rows += [(name, leg[i], LEG_OFFSETS[i]) for i, name in enumerate(leg[1:])]
     return _build(rows + arm_rows + _mirror(arm_rows, left, right) + leg_rows + _mirror(leg_rows, left, right))
 
@@ -243,7 +247,7 @@ def _mixamo(prefix: str = "mixamorig:") -> Skeleton:
     names = skeleton.names + fingers
     parents = list(skeleton.parents) + [names.index("LeftHand")] * len(fingers)
     offsets = np.vstack([skeleton.offsets, np.full((len(fingers), 3), 0.03)])
-    return Skeleton([prefix + n for n in names], parents, offsets)
+    return Skeleton([prefix + n for n in names], np.asarray(parents), offsets)
 
 
 COMMON = {
@@ -506,7 +510,7 @@ def test_missing_roles_error_lists_the_roles_and_every_bone():
 
 
 def test_nothing_human_lists_every_required_role():
-    skeleton = Skeleton(["Root", "Boom", "Hook"], [-1, 0, 1], np.eye(3))
+    skeleton = Skeleton(["Root", "Boom", "Hook"], np.asarray([-1, 0, 1]), np.eye(3))
     with pytest.raises(SkeletonError) as caught:
         assign_roles(skeleton)
     message = str(caught.value)

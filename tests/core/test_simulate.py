@@ -91,10 +91,10 @@ def test_stronger_push_moves_the_centre_of_mass_further(walk, ragdolls, profile)
     ragdoll = ragdolls[profile]
     bone = ragdoll.roles["chest"]
     direction = np.array([0.0, 1.0, 0.0])  # backwards: the walker faces -Y here
-    still = simulate_impact(ragdoll, walk, Impact(START, bone, direction, 0.0))
+    still = simulate_impact(ragdoll, walk, Impact(START, bone, tuple(direction), 0.0))
     displacement = []
     for strength in (20.0, 50.0, 100.0, 160.0, 250.0):
-        pushed = simulate_impact(ragdoll, walk, Impact(START, bone, direction, strength))
+        pushed = simulate_impact(ragdoll, walk, Impact(START, bone, tuple(direction), strength))
         displacement.append(float((pushed.com[-1] - still.com[-1]) @ direction))
     assert np.all(np.diff(displacement) > 0), displacement
     assert displacement[0] > 0

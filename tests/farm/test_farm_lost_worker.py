@@ -42,8 +42,9 @@ def test_a_worker_killed_mid_bake_loses_nothing(inputs: list[Path], reference: d
     out = tmp_path / "out"
     with dask_cluster(tmp_path, workers=2) as address:
         args = [*map(str, inputs), "--out-dir", str(out), "--scheduler", address, "--report", str(tmp_path / "r.jsonl")]
-        pipes = {"stdout": subprocess.PIPE, "stderr": subprocess.PIPE}
-        run = subprocess.Popen(command(*args), cwd=REPO, env=ENVIRONMENT, text=True, **pipes)
+        run = subprocess.Popen(
+            command(*args), cwd=REPO, env=ENVIRONMENT, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+        )
         bake_pid, file = _kill_a_worker_mid_bake(inputs, baking_for=1.5)
         assert process_gone(bake_pid, within=5.0), "the killed worker's Blender process lived on"
         stdout, stderr = run.communicate(timeout=300)

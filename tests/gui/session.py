@@ -17,6 +17,7 @@ screenshot is black under Xvfb) to OUT/*.png; tests/gui/test_window.py judges th
 
 from __future__ import annotations
 
+import array
 import importlib
 import json
 import subprocess
@@ -25,7 +26,7 @@ import time
 import traceback
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import bpy
 import numpy as np
@@ -34,14 +35,23 @@ from mathutils import Vector
 
 OUT, ZIP, BVH = (Path(a) for a in sys.argv[sys.argv.index("--") + 1 :][:3])
 ADDON = "bl_ext.user_default.reactive_anim"
+OPERATORS = "reactive_anim"  # bpy.ops.reactive_anim
 STEP_TIMEOUT_S = 600.0  # the first bake compiles the bundled library's cache on 2 cores
 Step = Iterator[float | Callable[[], bool]]
+ViewAxis = Literal["LEFT", "RIGHT", "BOTTOM", "TOP", "FRONT", "BACK"]  # bpy.ops.view3d.view_axis's type
 results: list[dict[str, Any]] = []
 
 
 def addon(module: str) -> Any:
     """A module of the installed extension (blender.bake, blender.worker, ...)."""
     return importlib.import_module(f"{ADDON}.{module}")
+
+
+def operator(name: str) -> Callable[..., set[str]]:
+    """An operator of the installed extension, bpy.ops.reactive_anim.<name>: made when the extension
+    registers, so the bpy type stubs do not have it (the tests' typed tools/devkit/operators.py is
+    not on this script's path: it runs in Debian's Blender, which has only the installed zip)."""
+    return getattr(getattr(bpy.ops, OPERATORS), name)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -57,6 +67,13 @@ def area(kind: str) -> tuple[bpy.types.Window, bpy.types.Area, bpy.types.Region]
 def in_view(kind: str = "VIEW_3D") -> Any:
     window, found, region = area(kind)
     return bpy.context.temp_override(window=window, area=found, region=region, screen=window.screen)
+
+
+def view_3d(found: bpy.types.Area) -> bpy.types.SpaceView3D:
+    """The 3D view of an area (as tools/devkit/blender_types.py's, which this script cannot import)."""
+    space = found.spaces.active
+    assert isinstance(space, bpy.types.SpaceView3D)
+    return space
 
 
 def screen_point(region: bpy.types.Region, x: float, y: float) -> tuple[int, int]:
@@ -92,9 +109,11 @@ def screenshot(name: str) -> Path:
 def arrow_color_pixels(png: Path, box: tuple[int, int, int, int]) -> int:
     """How many pixels inside `box` (x0, y0, x1, y1, top-left origin) have the overlay's orange."""
     image = bpy.data.images.load(str(png))
-    pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
+    assert isinstance(image.pixels, bpy.types.bpy_prop_array)  # what it is (the type stubs say float)
+    pixels = array.array("f", bytes(4 * image.size[0] * image.size[1] * 4))  # float32, as Blender holds them
     image.pixels.foreach_get(pixels)
-    rgb = pixels.reshape(image.size[1], image.size[0], 4)[::-1, :, :3]  # Blender stores rows bottom-up
+    rgb = np.frombuffer(pixels, dtype=np.float32).reshape(image.size[1], image.size[0], 4)
+    rgb = rgb[::-1, :, :3]  # Blender stores rows bottom-up
     bpy.data.images.remove(image)
     x0, y0, x1, y1 = box
     patch = rgb[max(y0, 0) : y1, max(x0, 0) : x1]
@@ -112,11 +131,12 @@ def character() -> bpy.types.Object:
 
 def snapshot() -> dict[str, Any]:
     scene = bpy.context.scene
-    armature = character()
+    action = character().animation_data.action
+    assert action is not None
     return {
         "actions": sorted(a.name for a in bpy.data.actions),
         "objects": sorted(ob.name for ob in bpy.data.objects),
-        "assigned": armature.animation_data.action.name,
+        "assigned": action.name,
         "markers": sorted((m.name, m.frame) for m in scene.timeline_markers),
         "range": [scene.frame_start, scene.frame_end],
     }
@@ -151,7 +171,7 @@ def install() -> Step:
 
 
 def import_bvh() -> Step:
-    result = click(bpy.ops.reactive_anim.import_bvh, "EXEC_DEFAULT", filepath=str(BVH))  # invoke: a file browser
+    result = click(operator("import_bvh"), "EXEC_DEFAULT", filepath=str(BVH))  # invoke: a file browser
     yield 0.5
     check(result == {"FINISHED"}, "import", result=result)
     armature = character()
@@ -162,7 +182,7 @@ def add_impacts() -> Step:
     """Pose Mode, the hit bone active, the view looking along the push, +; then Aim from View."""
     armature = character()
     _window, view, _region = area("VIEW_3D")
-    view.spaces.active.show_region_ui = True  # the sidebar; its Reactions tab is the fourth down its edge
+    view_3d(view).show_region_ui = True  # the sidebar; its Reactions tab is the fourth down its edge
     yield 0.5
     sidebar = next(r for r in view.regions if r.type == "UI")
     x, top = screen_point(sidebar, sidebar.width - 8, sidebar.height)
@@ -170,16 +190,19 @@ def add_impacts() -> Step:
     with in_view():
         bpy.context.view_layer.objects.active = armature
         bpy.ops.object.mode_set("EXEC_DEFAULT", True, mode="POSE")
-    for frame, bone, strength, view_axis in ((60, "chest", 80.0, "FRONT"), (150, "pelvis", 350.0, "LEFT")):
+    hits: tuple[tuple[int, str, float, ViewAxis], ...] = ((60, "chest", 80.0, "FRONT"), (150, "pelvis", 350.0, "LEFT"))
+    for frame, bone, strength, view_axis in hits:
         bpy.context.scene.frame_set(frame)
-        bones = character().data.bones  # looked up again: an undo step may have rebuilt the armature's data
+        rig_data = character().data  # looked up again: an undo step may have rebuilt the armature's data
+        assert isinstance(rig_data, bpy.types.Armature)
+        bones = rig_data.bones
         for other in bones:
             other.select = other.name == bone
         bones.active = bones[bone]
         with in_view():
             bpy.ops.view3d.view_axis(type=view_axis)
         yield 0.3
-        result = click(bpy.ops.reactive_anim.add_impact, strength=strength)
+        result = click(operator("add_impact"), strength=strength)
         check(result == {"FINISHED"}, "add impact", result=result)
         yield 0.2
     markers = impact_markers()
@@ -196,7 +219,7 @@ def add_impacts() -> Step:
     with in_view():
         bpy.ops.view3d.view_axis(type="BACK")
     yield 0.3
-    result = click(bpy.ops.reactive_anim.aim_impact)
+    result = click(operator("aim_impact"))
     check(result == {"FINISHED"}, "aim", result=result)
     check(np.allclose(data[1].direction, (0, -1, 0), atol=1e-3), "BACK view aims along -Y", got=list(data[1].direction))
     with in_view():
@@ -205,7 +228,7 @@ def add_impacts() -> Step:
     screenshot("impacts")
 
 
-def look_at_character(view_axis: str, bone: str = "pelvis") -> Step:
+def look_at_character(view_axis: ViewAxis, bone: str = "pelvis") -> Step:
     """The 3D view looks along an axis at a bone of the character as it is posed now."""
     armature = character()
     with in_view():
@@ -214,9 +237,9 @@ def look_at_character(view_axis: str, bone: str = "pelvis") -> Step:
         bpy.context.view_layer.objects.active = armature
         bpy.ops.view3d.view_axis(type=view_axis)
     yield 0.3
-    view_3d = area("VIEW_3D")[1].spaces.active.region_3d
-    view_3d.view_location = armature.matrix_world @ armature.pose.bones[bone].head
-    view_3d.view_distance = 3.5
+    region_3d = view_3d(area("VIEW_3D")[1]).region_3d
+    region_3d.view_location = armature.matrix_world @ armature.pose.bones[bone].head
+    region_3d.view_distance = 3.5
     yield 0.5
 
 
@@ -225,12 +248,12 @@ def escape_cancels_a_long_bake() -> Step:
     extra = []
     for k in range(12):
         click(
-            bpy.ops.reactive_anim.add_impact,
+            operator("add_impact"),
             armature_name=character().name, bone="chest", frame=20 + 18 * k, direction=(0, 1, 0), strength=60.0,
         )  # fmt: skip
         extra.append(impact_markers()[-1].name)
     before = snapshot()
-    result = click(bpy.ops.reactive_anim.bake)
+    result = click(operator("bake"))
     check(result == {"RUNNING_MODAL"}, "the bake runs modal in a window", result=result)
     yield 0.2
     check(not not_running(), "still running when Esc is pressed")
@@ -240,7 +263,7 @@ def escape_cancels_a_long_bake() -> Step:
     check(snapshot() == before, "Esc left the file as it was", before=before, after=snapshot())
     for name in extra:
         marker = bpy.context.scene.timeline_markers[name]
-        click(bpy.ops.reactive_anim.remove_impact, uid=addon("blender.impacts.impacts").impact_data(marker).uid)
+        click(operator("remove_impact"), uid=addon("blender.impacts.impacts").impact_data(marker).uid)
     check(len(impact_markers()) == 2, "extra impacts removed")
 
 
@@ -249,12 +272,13 @@ state: dict[str, Any] = {}
 
 def bake() -> Step:
     state["before"] = snapshot()
-    result = click(bpy.ops.reactive_anim.bake)
+    result = click(operator("bake"))
     check(result == {"RUNNING_MODAL"}, "bake", result=result)
     yield not_running
     yield 0.5
     armature = character()
     action = armature.animation_data.action
+    assert action is not None
     check(action.name.endswith(".reacted"), "the reacted action is assigned", assigned=action.name)
     scene = bpy.context.scene
     first, last = action.frame_range
@@ -276,11 +300,11 @@ def undo_redo() -> Step:
 
 
 def preview_discard_accept() -> Step:
-    click(bpy.ops.reactive_anim.clear_bake)
+    click(operator("clear_bake"))
     yield 0.3
     cleared = snapshot()
     for ending in ("discard", "accept"):
-        result = click(bpy.ops.reactive_anim.preview)
+        result = click(operator("preview"))
         check(result == {"RUNNING_MODAL"}, "preview", result=result)
         yield not_running
         yield 0.5
@@ -289,11 +313,11 @@ def preview_discard_accept() -> Step:
         check(snapshot()["assigned"] == cleared["assigned"], "the character keeps its own action")
         if ending == "discard":
             screenshot("preview")
-            click(bpy.ops.reactive_anim.discard_preview)
+            click(operator("discard_preview"))
             yield 0.3
             check(snapshot() == cleared, "Discard leaves no trace", before=cleared, after=snapshot())
         else:
-            click(bpy.ops.reactive_anim.accept_preview)
+            click(operator("accept_preview"))
             yield 0.3
             check(snapshot()["assigned"].endswith(".reacted"), "Accept makes it the bake", now=snapshot())
             check(".preview" not in " ".join(snapshot()["objects"]), "the ghost is gone")
@@ -332,7 +356,7 @@ def overlay_arrow_is_drawn() -> Step:
     armature = character()
     marker = impact_markers()[0]
     data = addon("blender.impacts.impacts").impact_data(marker)
-    area("VIEW_3D")[1].spaces.active.show_region_ui = False  # the whole view for the character
+    view_3d(area("VIEW_3D")[1]).show_region_ui = False  # the whole view for the character
     counts = {}
     for frame in (marker.frame, marker.frame + 60):
         bpy.context.scene.frame_set(frame)
@@ -345,7 +369,7 @@ def overlay_arrow_is_drawn() -> Step:
         if frame == marker.frame:
             length = addon("blender.ui.overlay").arrow_length(data.strength)
             tail = tip - Vector(data.direction).normalized() * length
-            ends = [view3d_utils.location_3d_to_region_2d(region, view.spaces.active.region_3d, p) for p in (tip, tail)]
+            ends = [view3d_utils.location_3d_to_region_2d(region, view_3d(view).region_3d, p) for p in (tip, tail)]
             points = [screen_point(region, p.x, p.y) for p in ends]
             xs, ys = [p[0] for p in points], [p[1] for p in points]
             box = (min(xs) - 12, min(ys) - 12, max(xs) + 12, max(ys) + 12)

@@ -7,12 +7,23 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
+from reactive_anim.blender import compat
+from tools.devkit.blender_types import as_buffer
+
+
+def action_of(ob: bpy.types.Object) -> bpy.types.Action:
+    """The action the object plays (the test expects one)."""
+    action = ob.animation_data.action
+    assert action is not None, f"object '{ob.name}' plays no action"
+    return action
+
 
 def fcurves(action: bpy.types.Action) -> list[bpy.types.FCurve]:
     """Every F-curve of an action."""
-    if hasattr(action, "layers") and (action.layers or not hasattr(action, "fcurves")):
+    layered = compat.layered(action)
+    if compat.has_layers(action) and (layered.layers or not hasattr(action, "fcurves")):
         return [
-            fc for layer in action.layers for strip in layer.strips for bag in strip.channelbags for fc in bag.fcurves
+            fc for layer in layered.layers for strip in layer.strips for bag in strip.channelbags for fc in bag.fcurves
         ]
     return list(action.fcurves)
 
@@ -30,7 +41,7 @@ def keyframes(action: bpy.types.Action) -> dict[tuple[str, int], bytes]:
             ("interpolation", 1, np.int32),
         ):
             values = np.empty(len(points) * width, dtype=dtype)
-            points.foreach_get(name, values)
+            points.foreach_get(name, as_buffer(values))
             data.append(values.tobytes())
         out[(fc.data_path, fc.array_index)] = b"".join(data)
     return out

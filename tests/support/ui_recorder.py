@@ -10,13 +10,21 @@ from typing import Any
 
 import bpy
 
-_FUNCTIONS = bpy.types.UILayout.bl_rna.functions
-_ICONS = set(_FUNCTIONS["prop"].parameters["icon"].enum_items.keys())
+_LAYOUT = bpy.types.UILayout.bl_rna
+assert isinstance(_LAYOUT, bpy.types.Struct)  # what bl_rna is (the stubs know it as BlenderRNA only)
+_FUNCTIONS = _LAYOUT.functions
+_ICON = _FUNCTIONS["prop"].parameters["icon"]
+assert isinstance(_ICON, bpy.types.EnumProperty)
+_ICONS = set(_ICON.enum_items.keys())
 _CONTAINERS = ("row", "column", "box", "split", "column_flow", "grid_flow")
 
 
 class OperatorButton:
     """The properties of an operator button: only the operator's own properties can be set."""
+
+    idname: str
+    values: dict[str, Any]
+    _names: set[str]
 
     def __init__(self, idname: str) -> None:
         module, name = idname.split(".")
@@ -80,6 +88,21 @@ class Recorder:
 
     def operators(self) -> list[str]:
         return [item[1] for item in self.items if item[0] == "operator"]
+
+
+def filter_items(
+    ui_list: type, owner: object, context: bpy.types.Context, data: Any, property: str
+) -> tuple[list[int], list[int]]:
+    """Run a UIList's filter_items on `owner` (a stand-in for the list): its flags and order."""
+    return ui_list.filter_items(owner, context, data, property)
+
+
+def draw_item(ui_list: type, owner: object, context: bpy.types.Context, data: Any, item: Any, index: int) -> Recorder:
+    """Run a UIList's draw_item on `owner` (a stand-in for the list) with a Recorder as the row's
+    layout (no icon, no active data); the recorder, for its items."""
+    row = Recorder()
+    ui_list.draw_item(owner, context, row, data, item, 0, None, "", index)
+    return row
 
 
 def draw(panel: type, context: bpy.types.Context) -> Recorder:

@@ -36,8 +36,9 @@ from reactive_anim.core.model.classes import is_fall
 from reactive_anim.core.model.errors import ReactiveAnimError
 from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.model.skeleton import Motion, root_child
+from reactive_anim.core.physics.ragdoll import Ragdoll
 from reactive_anim.core.physics.workspace import Workspace
-from reactive_anim.core.react import Reaction, ReactionSettings, character_ragdoll, react
+from reactive_anim.core.react import Reaction, ReactionClassifier, ReactionSettings, character_ragdoll, react
 from reactive_anim.core.search.library import Library, load_library
 from reactive_anim.core.transition.casting import Casting
 from reactive_anim.core.transition.retarget import joint_path
@@ -214,13 +215,13 @@ class Pushing:
 
     real: Real
     library: Library
-    classifier: object
+    classifier: ReactionClassifier | None
     casting: Casting
-    ragdoll: object
+    ragdoll: Ragdoll
     workspace: Workspace
 
     @classmethod
-    def on(cls, real: Real, library: Library, classifier: object) -> Pushing:
+    def on(cls, real: Real, library: Library, classifier: ReactionClassifier | None) -> Pushing:
         ragdoll = character_ragdoll(real.motion)
         casting = Casting.between(real.motion, ragdoll.roles, library)
         return cls(real, library, classifier, casting, ragdoll, Workspace(ragdoll))
@@ -268,6 +269,7 @@ def measure(
     """One reaction's figures (see the module docstring) and the frames where each peaks; warm: its
     clips were cast onto the rig by an earlier reaction (a first use retargets them)."""
     real, out = push.real, reaction.motion
+    assert out is not None
     fps, n_out = out.fps, out.num_frames
     a, b = window_of(reaction, fps, n_out)
     s = bl.stride_frames(fps)
@@ -356,7 +358,10 @@ def figures(rows: list[dict], refs: References, failures: int) -> list[Row]:
     """The table's rows (each also reported as a JSON line)."""
     out: list[Row] = []
 
-    def add(measure: str, figure: str, value: float, unit: str, real: str, goal: str, met: bool | None, **ctx):
+    def add(
+        measure: str, figure: str, value: float | np.floating, unit: str, real: str, goal: str,
+        met: bool | np.bool_ | None, **ctx,
+    ):  # fmt: skip
         shown = f"{value:.1f} %" if unit == "%" else f"{value:.3g} {unit}"
         if float(value).is_integer():
             shown = f"{int(value)} {unit}"
@@ -581,6 +586,7 @@ def contact_sheet(cases: list[tuple[dict, Pushing, Reaction, Impact]], peak_key:
     image = np.full((ch * len(cases), 2 * cw * FRAMES, 3), 255, dtype=np.uint8)
     for row, (rec, push, reaction, impact) in enumerate(cases):
         out, source, roles = reaction.motion, push.real.motion, push.real.roles
+        assert out is not None
         posed, ghost = Posed.of(out), Posed.of(source)
         a, b = rec["window"]
         frames = sheet_frames(a, b, int(rec[peak_key]))
@@ -606,7 +612,9 @@ def contact_sheet(cases: list[tuple[dict, Pushing, Reaction, Impact]], peak_key:
     return image
 
 
-def write_sheets(rows: list[dict], library: Library, classifier: object, refs: References) -> list[Path]:
+def write_sheets(
+    rows: list[dict], library: Library, classifier: ReactionClassifier | None, refs: References
+) -> list[Path]:
     """The worst WORST reactions by each measure, re-made (the pipeline is deterministic) and drawn."""
     OUT.mkdir(parents=True, exist_ok=True)
     for row in rows:
@@ -631,7 +639,8 @@ def write_sheets(rows: list[dict], library: Library, classifier: object, refs: R
         lines = [f"{name}: worst {len(cases)} by {key} ({'largest' if larger else 'smallest'} first); "
                  "columns: frames from B to the window's end, side view | front view each"]  # fmt: skip
         for k, (rec, *_rest) in enumerate(cases):
-            frames = sheet_frames(*rec["window"], int(rec[peak_key])).tolist()
+            a, b = rec["window"]
+            frames = sheet_frames(a, b, int(rec[peak_key])).tolist()
             lines.append(json.dumps({
                 "row": k + 1, "take": rec["take"], "rig": rec["rig"], "frame": rec["frame"], "bone": rec["bone"],
                 "from": rec["side"], "N·s": rec["strength"], "class": rec["class"], "clip": rec["clip"],

@@ -138,7 +138,7 @@ def _bare_steps(workspace: Workspace, runs: list[tuple[SimState, int]]) -> Calla
 def _bench_impact_physics() -> None:
     """One impact's physics as a bake runs it (BC 0.25 s, then CD over the transition with the root
     assist, reusing a Workspace) against bare mj_step calls for the same number of steps from the
-    same states: the ratio is what the Python around the steps costs (issue 11 asks for <= 1.3)."""
+    same states: the ratio is what the Python around the steps costs (the goal: at most 1.3)."""
     motion = bvh.read_bvh(REPO / "sample_clips" / "walk.bvh")
     ragdoll = build_ragdoll(motion.skeleton)
     workspace = Workspace(ragdoll)

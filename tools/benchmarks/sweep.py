@@ -63,7 +63,7 @@ def bake_halving(motion: Motion, impacts: list[Impact], library, classifier) -> 
         try:
             return bake_reactions(motion, impacts, library, classifier), halved, time.perf_counter() - start
         except ImpactError as error:
-            if halved == RETRIES or error.impact not in impacts:
+            if halved == RETRIES or not isinstance(error.impact, Impact) or error.impact not in impacts:
                 raise
             k = impacts.index(error.impact)
             impacts[k] = Impact(impacts[k].frame, impacts[k].bone, impacts[k].direction, impacts[k].strength / 2)

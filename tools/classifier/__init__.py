@@ -1,4 +1,4 @@
-"""Training the reaction classifier (paper section 2.3; issue 12), as the parts of one pipeline.
+"""Training the reaction classifier (paper section 2.3), as the parts of one pipeline.
 
 Run it as `python -m tools.train_classifier` from the repository root (or `python -m reactive_anim
 train`). Modules: pushes (simulated pushes on locomotion clips, labelled by core.outcome), nets (the

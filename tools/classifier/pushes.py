@@ -36,7 +36,7 @@ from reactive_anim.core.physics.simulate import REACTION_WINDOW
 from reactive_anim.core.physics.workspace import Workspace
 
 HIT_ROLES = ("head", "chest", "pelvis", "shoulder_l", "shoulder_r", "hip_l", "hip_r")  # upper arms, thighs
-MIN_STRENGTH, MAX_STRENGTH = 10.0, 400.0  # N·s (issue 12)
+MIN_STRENGTH, MAX_STRENGTH = 10.0, 400.0  # N·s
 MAX_ELEVATION_DEGREES = 30.0  # push directions from 30 degrees below to 30 above horizontal
 PUSHES_PER_FRAME = 30  # pushes on each impact frame
 EDGE_TIME = 0.3  # s kept clear at both ends of a clip (the ground search and C must fit)

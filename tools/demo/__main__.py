@@ -35,6 +35,7 @@ from reactive_anim.blender.bake import bake, resources
 from reactive_anim.blender.impacts import impacts
 from reactive_anim.core.model.errors import ReactiveAnimError
 from reactive_anim.core.react import ReactionSettings
+from tools.devkit.operators import addon_ops
 
 from . import markers, render
 from . import scene as demo_scene
@@ -45,6 +46,7 @@ LATER = (30, 90)  # frames after F of its last two tiles
 
 
 def main(argv: list[str] | None = None) -> int:
+    assert __doc__ is not None
     parser = argparse.ArgumentParser(prog="python -m tools.demo", description=__doc__.split("\n\n")[0])
     parser.add_argument("--out-dir", type=Path, default=REPO / "out", help="where demo.blend and the PNG go")
     parser.add_argument(
@@ -132,7 +134,7 @@ def playing_original(armature: bpy.types.Object) -> Iterator[None]:
 
 def bake_with_operator(armature: bpy.types.Object) -> None:
     """`bpy.ops.reactive_anim.bake` on the armature; a refused bake stops the demo with its report."""
-    if bpy.ops.reactive_anim.bake(armature_name=armature.name) != {"FINISHED"}:
+    if addon_ops.bake(armature_name=armature.name) != {"FINISHED"}:
         raise ReactiveAnimError(f"the bake of '{armature.name}' failed (its report is above)")
 
 

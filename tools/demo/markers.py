@@ -94,6 +94,7 @@ def impact_frame(armature: bpy.types.Object, hit: DemoImpact) -> int:
     scene = bpy.context.scene
     fps = scene.render.fps / scene.render.fps_base
     source = armature.animation_data.action
+    assert source is not None
     first = round(source.frame_range[0])
     return first + round(hit.seconds * fps)
 
@@ -101,7 +102,7 @@ def impact_frame(armature: bpy.types.Object, hit: DemoImpact) -> int:
 def add_demo_impacts(
     scene: bpy.types.Scene,
     armature: bpy.types.Object,
-    bake: Callable[[], None],
+    bake: Callable[[], object],
     force_classes: bool,
     hits: tuple[DemoImpact, ...] = DEMO_IMPACTS,
 ) -> list[bpy.types.TimelineMarker]:
@@ -164,9 +165,11 @@ def add_arrow(
     scene.frame_set(frame)
     pose_bone = armature.pose.bones[bone]
     middle = armature.matrix_world @ ((pose_bone.head + pose_bone.tail) / 2)
-    tip = Vector(middle) - Vector(direction) * ARROW_GAP
+    tip = middle - Vector(direction.tolist()) * ARROW_GAP
     arrow = bpy.data.objects.new(f"{name} arrow", arrow_mesh(f"{name} arrow"))
-    arrow.matrix_world = Matrix.Translation(tip) @ Vector(direction).to_track_quat("Z", "Y").to_matrix().to_4x4()
+    arrow.matrix_world = (
+        Matrix.Translation(tip) @ Vector(direction.tolist()).to_track_quat("Z", "Y").to_matrix().to_4x4()
+    )
     scene.collection.objects.link(arrow)
     for key_frame, hidden in (
         (frame - ARROW_LEAD - 1, True),

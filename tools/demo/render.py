@@ -17,6 +17,8 @@ from pathlib import Path
 import bpy
 import numpy as np
 
+from tools.devkit.blender_types import as_buffer
+
 from . import scene as demo_scene
 
 TILE_SIZE = (320, 240)  # pixels
@@ -80,7 +82,8 @@ def _read_png(path: Path) -> np.ndarray:
     try:
         width, height = image.size
         pixels = np.empty(width * height * 4, dtype=np.float32)
-        image.pixels.foreach_get(pixels)  # pyright: ignore[reportArgumentType]
+        assert isinstance(image.pixels, bpy.types.bpy_prop_array)  # what it is (the type stubs say float)
+        image.pixels.foreach_get(as_buffer(pixels))
     finally:
         bpy.data.images.remove(image)
     return pixels.reshape(height, width, 4)[::-1]
@@ -147,7 +150,8 @@ def write_png(pixels: np.ndarray, path: Path) -> None:
     height, width = pixels.shape[:2]
     image = bpy.data.images.new("demo filmstrip", width, height, alpha=False)
     try:
-        image.pixels.foreach_set(np.ascontiguousarray(pixels[::-1]).ravel())  # pyright: ignore[reportArgumentType]
+        assert isinstance(image.pixels, bpy.types.bpy_prop_array)  # what it is (the type stubs say float)
+        image.pixels.foreach_set(as_buffer(np.ascontiguousarray(pixels[::-1]).ravel()))
         path.parent.mkdir(parents=True, exist_ok=True)
         image.filepath_raw = str(path)
         image.file_format = "PNG"

@@ -25,6 +25,7 @@ from mathutils import Matrix, Vector
 
 from reactive_anim.blender.character import action_io, bvh_import
 from reactive_anim.core.model.roles import assign_roles, read_joint_name
+from tools.devkit.blender_types import as_buffer
 
 CHARACTER_NAME = "Walker"
 MANNEQUIN_NAME = "Mannequin"
@@ -101,7 +102,8 @@ def build_scene(bvh_path: str | Path) -> bpy.types.Object:
     scene = bpy.context.scene
     armature = bvh_import.import_bvh(bpy.context, bvh_path, name=CHARACTER_NAME)
     action = armature.animation_data.action
-    fit_frame_range(scene, action.frame_range)
+    assert action is not None
+    fit_frame_range(scene, action.frame_range[:])
     add_mannequin(armature)
     first, last = (round(f) for f in action.frame_range)
     start, end = ground_point(armature, first), ground_point(armature, last)
@@ -148,8 +150,8 @@ def add_mannequin(armature: bpy.types.Object) -> bpy.types.Object:
     assert isinstance(data, bpy.types.Armature)
     role_of = {bone: role for role, bone in character_roles(armature).items()}
     # The body's axes at rest, in armature space: across (right to left) along the hip line.
-    lateral = Vector(data.bones[role_of_bone(role_of, "hip_l")].head_local) - Vector(
-        data.bones[role_of_bone(role_of, "hip_r")].head_local
+    lateral = (
+        data.bones[role_of_bone(role_of, "hip_l")].head_local - data.bones[role_of_bone(role_of, "hip_r")].head_local
     )
     lateral = np.array(lateral.normalized())
     vertices: list[np.ndarray] = []
@@ -173,8 +175,8 @@ def add_mannequin(armature: bpy.types.Object) -> bpy.types.Object:
     mesh.from_pydata(np.concatenate(vertices).tolist(), [], faces)
     for colour, name in ((BODY_COLOUR, "body"), (LEFT_COLOUR, "left"), (RIGHT_COLOUR, "right")):
         mesh.materials.append(material(f"{MANNEQUIN_NAME} {name}", colour))
-    mesh.polygons.foreach_set("material_index", np.array(sides, dtype=np.int32))
-    mesh.polygons.foreach_set("use_smooth", np.ones(len(sides), dtype=bool))
+    mesh.polygons.foreach_set("material_index", as_buffer(np.array(sides, dtype=np.int32)))
+    mesh.polygons.foreach_set("use_smooth", as_buffer(np.ones(len(sides), dtype=bool)))
     mesh.update()
     body = bpy.data.objects.new(MANNEQUIN_NAME, mesh)
     bpy.context.scene.collection.objects.link(body)
@@ -279,7 +281,7 @@ def add_floor(scene: bpy.types.Scene, centre: np.ndarray) -> bpy.types.Object:
     mesh.from_pydata(vertices.tolist(), [], faces.tolist())
     for k, colour in enumerate(FLOOR_COLOURS):
         mesh.materials.append(material(f"Floor {k + 1}", colour))
-    mesh.polygons.foreach_set("material_index", ((i + j) % 2).astype(np.int32))
+    mesh.polygons.foreach_set("material_index", as_buffer(((i + j) % 2).astype(np.int32)))
     mesh.update()
     floor = bpy.data.objects.new("Floor", mesh)
     floor.location = (round(float(centre[0])), round(float(centre[1])), 0.0)

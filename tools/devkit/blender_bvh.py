@@ -5,6 +5,7 @@ Imports bpy: only for tests/blender and the Blender benchmark."""
 from __future__ import annotations
 
 import contextlib
+import importlib
 import io
 from pathlib import Path
 
@@ -17,7 +18,7 @@ from reactive_anim.core.model import bvh
 def import_with_blender(context: bpy.types.Context, path: Path, unit: str = "auto", up: str = "Y") -> bpy.types.Object:
     """The armature Blender's importer makes from `path` (our reader's check first, quaternion
     rotations, metres, Z up, frame 1 = file frame 0, the scene at the file's rate), as before."""
-    from io_anim_bvh import import_bvh  # Blender's add-on; no type stubs
+    import_bvh = importlib.import_module("io_anim_bvh.import_bvh")  # Blender's bundled add-on: no type stubs
 
     scale = bvh.unit_scale(bvh.parse_bvh(path), unit)
     from_forward, from_up = ("-Z", "Y") if up == "Y" else ("Y", "Z")

@@ -1,4 +1,4 @@
-"""How long a CD tracking run keeps the character up, the measure of issue 10's balance goal.
+"""How long a CD tracking run keeps the character up, the measure of CD's balance.
 
 Kept up: the pelvis within 10 cm of the target's height at every frame, and the mean joint error
 (role joints, relative to the pelvis' ground point, so a walker the physics slowed or sped is not

@@ -25,6 +25,7 @@ REPO = Path(__file__).resolve().parents[2]
 
 def main(argv: list[str] | None = None) -> int:
     """Write the clips and say what was written, read back through the BVH reader as a check."""
+    assert __doc__ is not None
     parser = argparse.ArgumentParser(prog="python -m tools.sample_clips", description=__doc__.split("\n\n")[0])
     parser.add_argument(
         "--out", type=Path, default=REPO / "sample_clips", help="output folder (default: sample_clips/)"

@@ -126,6 +126,7 @@ def balance_plan(push: Push, *, planted: bool = False) -> StepPlan:
             else:
                 ankles[side].append([*foot(side), ANKLE_HEIGHT])
                 pitch[side].append(0.0)
+        xi = target = 0.0  # both set by the first of the SIM_STEPS steps
         for _ in range(SIM_STEPS):
             xi = u + v / OMEGA
             support = [side for side in SIDES if planted_feet[side]]

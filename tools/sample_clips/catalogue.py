@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import TypeVar
 
 from reactive_anim.core.model import bvh
 from reactive_anim.core.model.skeleton import Motion
@@ -18,10 +19,12 @@ from .getups import GETUPS, keyed_clip
 from .idle import idle_clip
 from .steps import STEPS, SWAYS, step_clip, sway_clip
 
+P = TypeVar("P")  # a clip function's parameters
+
 LOCOMOTION = ("walk", "run", "idle")  # not reactions: kept out of the library
 
 
-def clip_maker(build: Callable[[object], Motion], params: object, what: str) -> Callable[[], Motion]:
+def clip_maker(build: Callable[[P], Motion], params: P, what: str) -> Callable[[], Motion]:
     """A CLIPS entry (a clip function without arguments) for one row of a parameter table."""
 
     def make() -> Motion:

@@ -8,6 +8,7 @@ clip eases and lifts the same way.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import overload
 
 import numpy as np
 
@@ -53,7 +54,11 @@ def minimum_jerk(s: np.ndarray) -> np.ndarray:
     return s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
 
 
-def lift_bump(s: np.ndarray) -> np.ndarray:
+@overload
+def lift_bump(s: float) -> float: ...
+@overload
+def lift_bump(s: np.ndarray) -> np.ndarray: ...
+def lift_bump(s: float | np.ndarray) -> float | np.ndarray:
     """16 s^2 (1 - s)^2: 0 at both ends of a move (s in [0, 1]), 1 half way, leaving and landing
     with zero speed: how high a carried hand or a stepping foot is lifted along the way."""
     return 16.0 * s * s * (1.0 - s) * (1.0 - s)

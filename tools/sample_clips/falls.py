@@ -123,7 +123,8 @@ def _clean(motion: Motion, floor: float) -> Motion:
 
 def push_direction(fall: Fall) -> tuple[float, float, float]:
     """The fall's push direction in the world: its heading, plus `lift` of up."""
-    return tuple(float(v) for v in heading(fall.direction) + fall.lift * UP)
+    x, y, z = (float(v) for v in heading(fall.direction) + fall.lift * UP)
+    return x, y, z
 
 
 @dataclass

@@ -113,12 +113,12 @@ def clip_motion(skeleton: Skeleton, root: np.ndarray, local: np.ndarray) -> Moti
 # Rotations about the world axes, and directions given as angles from the facing
 
 
-def about(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+def about(axis: np.ndarray, angle: float | np.ndarray) -> np.ndarray:
     """Quaternions for rotations by `angle` (radians, any shape) about a fixed world axis."""
     return quat.from_axis_angle(axis, np.asarray(angle, dtype=float))
 
 
-def about_x(angle: np.ndarray) -> np.ndarray:
+def about_x(angle: float | np.ndarray) -> np.ndarray:
     """Pitch: about +X, the character's left; positive bends forward (the front, -Y, goes down)."""
     return about(X_AXIS, angle)
 

@@ -147,7 +147,7 @@ class REACTIVE_ANIM_OT_clear_roles(_OnCharacter):
 def check_roles(armature: bpy.types.Object) -> str:
     """One line for the panel: every role found, or which are missing. Kept per rig (bone names,
     parents, rest heads and the role map): the panel draws on every mouse move over it, and finding
-    the roles of a 100-bone rig takes 10 ms, reading the rig for the key 0.3 ms."""
+    the roles of a large rig costs far more than reading the rig for the key."""
     key = _rig_key(armature)
     status = _CHECKED.get(key)
     if status is None:

@@ -332,8 +332,8 @@ def _motion_values(
 def _number_table(numbered: list[tuple[int, str]], columns: int) -> FloatArray | None:
     """The lines as a (lines, columns) array in one C pass, or None where they cannot be read so
     (a token that is not a number, a line with another count of values). numpy's loadtxt checks
-    every line's count as it parses; it is also faster than fromstring on the joined text (58
-    against 63 ms on the largest shared file) and gives the same numbers bit for bit."""
+    every line's count as it parses; it is also faster than fromstring on the joined text and gives
+    the same numbers bit for bit."""
     if not numbered:
         return np.empty((0, columns))
     block = "\n".join(text for _, text in numbered)

@@ -19,8 +19,8 @@ What we choose where the paper is silent, and why:
   BoneRoot) has that child faded in world space, its position lerped and its rotation slerped.
   Blended through the root, the root's turn swings the hips on an arc as wide as their offset from
   the root, which in the Bandai files carries the walk (4.5 m in a shared run): two sources half a
-  turn apart put the hips 4 m off their path for a few frames, at up to 76 m/s, and a next push
-  simulated from there exploded. Where a source animates that offset (position channels), the
+  turn apart put the hips metres off their path for a few frames, far faster than anyone runs, and
+  a next push simulated from there exploded. Where a source animates that offset (position channels), the
   offset takes up the difference; where both hang the hips on the rest bone, the root moves.
 """
 

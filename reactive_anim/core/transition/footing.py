@@ -3,8 +3,7 @@
 A reaction is stitched from sources whose feet stand in different places: the ragdoll's simulated
 steps, the clip faded in over C..F (blend.py), the original motion faded back in on resume. Where
 two sources cross-fade while a foot is on the floor, the foot slides from one footprint to the
-other. Measured on nine pushes of the sample walk (contact point of a touching foot, summed over
-C..F): 237 cm, of which the simulation itself slid 87 cm; the fade is the rest.
+other; the fade slides a standing foot far more than the simulation does (docs/measurements.md).
 
 Where the sources cross-fade (`fades`: C..F, a chained get-up fading in, the resume), the part of
 a standing foot's motion along the floor is taken back by an offset, which the leg's two-bone IK
@@ -17,7 +16,7 @@ a millimetre's difference in the motion moves the result by little. Where a leg 
 the offset is capped (MAX_OFFSET) and the foot slides the rest. From the impact to the end of
 the reaction, a foot whose lowest point is under the character's floor (the lowest its feet get
 in its own motion) is also lifted onto it: the ragdoll's soles and the skeleton's toes do not
-quite agree, and toes went up to 4 cm under the floor in transitions. A hand under the floor
+quite agree, and toes went centimetres under the floor in transitions. A hand under the floor
 there is lifted onto it by the arm's IK, as a foot is: a fade between two poses whose hands both
 clear the floor can pass one under it, and a clip cast onto longer arms puts the hands a few cm
 under (docs/measurements.md). Knees a fade puts under the floor cannot be lifted so: with the

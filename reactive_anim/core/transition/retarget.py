@@ -62,7 +62,7 @@ LOWER_BODY = {"pelvis", *(f"{part}_{s}" for part in ("hip", "knee", "ankle", "to
 # A source foot is planted where its ankle is within this of its lowest height in the clip and it
 # moves slower than this; the IK eases in and out over EASE_FRAMES frames.
 PLANT_HEIGHT = 0.03  # metres, scaled by the source's leg length / 0.9 m
-PLANT_SPEED = 0.2  # metres per second, likewise scaled (the sample walk's plants then slide 3 mm)
+PLANT_SPEED = 0.2  # metres per second, likewise scaled (a planted foot of the sample walk barely slides)
 EASE_FRAMES = 4
 MIN_BONE = 1e-3  # metres: a shorter bone has no usable direction
 
