@@ -25,8 +25,9 @@ fi
 # Our own hand-written stubs (tools/typings: onnxruntime, which ships none) go beside them, copied
 # afresh on every run so that an edit to them counts.
 for package in "$root"/tools/typings/*/; do
-  rm -rf "$stubs/$(basename "$package")"
-  cp -R "$package" "$stubs/"
+  name="$(basename "$package")"
+  rm -rf "${stubs:?}/$name"
+  cp -R "$root/tools/typings/$name" "$stubs/$name"
 done
 
 export PYRIGHT_PYTHON_IGNORE_WARNINGS=1  # no "new pyright version" look-up on PyPI

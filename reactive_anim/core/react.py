@@ -51,6 +51,7 @@ import numpy as np
 from .classify.capture import foot_bodies
 from .classify.features import Body, FeatureReader
 from .classify.outcome import COLLAPSE_HEIGHT, Outcome, collapsing, judge
+from .model.arrays import FloatArray
 from .model.classes import CLASS_SLUGS, is_fall
 from .model.errors import Cancelled, ImpactError, LibraryError, SkeletonError
 from .model.impact import Impact
@@ -135,7 +136,7 @@ class ReactionClassifier(Protocol):
     """What the pipeline needs of a classifier (classifier.py): class probabilities of a simulated
     impact, in CLASS_SLUGS order."""
 
-    def classify(self, before: Motion, bc: SimResult, ragdoll: Ragdoll) -> np.ndarray: ...
+    def classify(self, before: Motion, bc: SimResult, ragdoll: Ragdoll) -> FloatArray: ...
 
 
 @dataclass(frozen=True)
@@ -180,7 +181,7 @@ class Reaction:
     going_down: bool = False
     note: str = ""
     kept_motion: bool = False
-    timings: dict[str, float] = field(default_factory=dict)
+    timings: dict[str, float] = field(default_factory=dict[str, float])
     motion: Motion | None = field(default=None, repr=False)
 
 
@@ -346,7 +347,8 @@ def bake_reactions(
     ragdoll = character_ragdoll(motion, settings.profile)
     workspace = Workspace(ragdoll)
     casting = Casting.between(motion, ragdoll.roles, library)
-    current, reactions = motion, []
+    current = motion
+    reactions: list[Reaction] = []
     for k, impact in enumerate(ordered):
         if cancel is not None and cancel():
             raise Cancelled(f"bake cancelled before impact {k + 1} of {len(ordered)}")
@@ -414,8 +416,8 @@ def _check_impact(motion: Motion, impact: Impact) -> None:
 
 def _probabilities(
     classifier: ReactionClassifier | None, before: Motion, bc: SimResult, ragdoll: Ragdoll
-) -> np.ndarray | None:
-    return None if classifier is None else np.asarray(classifier.classify(before, bc, ragdoll), dtype=float)
+) -> FloatArray | None:
+    return None if classifier is None else np.asarray(classifier.classify(before, bc, ragdoll), dtype=np.float64)
 
 
 def _query_ending_at(before: Motion, frame_c: int, casting: Casting, impact: Impact) -> Query:
@@ -444,7 +446,7 @@ def _search(
     library: Library,
     query: Query,
     impact: Impact,
-    probabilities: np.ndarray | None,
+    probabilities: FloatArray | None,
     settings: ReactionSettings,
     falling: str | None = None,
     rule: Callable[[], Outcome] | None = None,

@@ -24,7 +24,7 @@ JOINTS = {"pelvis": 0, "chest": 1, "head": 2, "hip_l": 3, "hip_r": 4, "shoulder_
 POSE = np.array(
     [[0, 0, 0.95], [0, 0, 1.3], [0, 0, 1.6], [0, 0.1, 0.9], [0, -0.1, 0.9], [0, 0.2, 1.4], [0, -0.2, 1.4]], dtype=float
 )
-FEET = np.array([[-0.05, 0.1], [0.15, 0.1], [-0.05, -0.1], [0.15, -0.1]])
+FEET = np.array([[-0.05, 0.1], [0.15, 0.1], [-0.05, -0.1], [0.15, -0.1]], dtype=np.float64)
 SOLE_RADIUS = 0.04
 COM = np.array([0.0, 0.0, 1.0])
 BODY = Body(joints=JOINTS, leg_length=LEG)
@@ -39,8 +39,8 @@ def state(
     return ReactionState(
         positions_b=POSE,
         com_b=COM,
-        positions_c=POSE + np.asarray(moved),
-        com_c=COM + np.asarray(moved),
+        positions_c=POSE + np.asarray(moved, dtype=np.float64),
+        com_c=COM + np.asarray(moved, dtype=np.float64),
         com_velocity=np.asarray(velocity, dtype=float),
         motion_com=COM,
         motion_velocity=np.asarray(motion_velocity, dtype=float),

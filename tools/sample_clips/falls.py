@@ -36,7 +36,7 @@ import numpy as np
 from reactive_anim.core.model import quat
 from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.model.skeleton import Motion
-from reactive_anim.core.physics.anatomy import ANATOMICAL_LIMITS
+from reactive_anim.core.physics.anatomy import ANATOMICAL_LIMITS, HingeRange
 from reactive_anim.core.physics.ragdoll import Ragdoll, build_ragdoll
 from reactive_anim.core.physics.simulate import simulate_impact, track
 from reactive_anim.core.physics.workspace import ServoGains, Workspace
@@ -59,10 +59,11 @@ def sample_ragdoll() -> Ragdoll:
 
     The clip tests allow no hyperextension; knee and elbow limits are soft (a degree or two past 0
     under load), so on this tool's ragdoll they start a degree into flexion."""
-    limits = dict(ANATOMICAL_LIMITS)
+    limits: dict[str, tuple[HingeRange, HingeRange, HingeRange]] = dict(ANATOMICAL_LIMITS)
     for part in ("knee", "elbow"):
-        (low, high), twist, abduction = limits[part]
-        limits[part] = ((max(low, 1.0), high), twist, abduction)
+        flexion, twist, abduction = limits[part]
+        assert flexion is not None  # knees and elbows are hinges that flex
+        limits[part] = ((max(flexion[0], 1.0), flexion[1]), twist, abduction)
     return build_ragdoll(sample_skeleton(), profile=limits, reference=_start_motions()["idle"])
 
 

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..model.arrays import BoolArray, FloatArray
 from ..model.floor import surely_on_floor
 from ..physics.probe import PoseProbe
 from ..physics.ragdoll import Ragdoll
@@ -36,7 +37,7 @@ def eigenfrequency(height: float) -> float:
     return math.sqrt(GRAVITY / max(height, 0.05))
 
 
-def xcom(com: np.ndarray, velocity: np.ndarray, omega: float) -> np.ndarray:
+def xcom(com: FloatArray, velocity: FloatArray, omega: float) -> FloatArray:
     """The extrapolated centre of mass over the floor, (2,)."""
     return np.asarray(com)[:2] + np.asarray(velocity)[:2] / omega
 
@@ -46,23 +47,23 @@ class Support:
     """Floor contact at one instant: `points` (K, 2) where the soles touch, each the centre of a
     disc of `radius` (the sole's half-width); `down`: a body other than the feet touches the floor."""
 
-    points: np.ndarray
+    points: FloatArray
     radius: float
     down: bool = False
 
-    def reach(self, target: np.ndarray, direction: np.ndarray) -> float:
+    def reach(self, target: FloatArray, direction: FloatArray) -> float:
         """How far a centre of pressure can move along `direction` inside the support, starting from
         the support's point nearest to `target` (`target` itself if inside); 0 without contact."""
         length = float(np.linalg.norm(direction))
         if len(self.points) == 0 or length == 0.0:
             return 0.0
         hull = convex_hull(self.points)
-        start = self._nearest(hull, np.asarray(target, dtype=float))
+        start = self._nearest(hull, np.asarray(target, dtype=np.float64))
         ends = np.roll(hull, -1, axis=0) if len(hull) > 2 else hull[::-1]
-        unit = np.asarray(direction, dtype=float) / length
+        unit = np.asarray(direction, dtype=np.float64) / length
         return max(0.0, max(_capsule_exit(start, unit, a, b, self.radius) for a, b in zip(hull, ends, strict=True)))
 
-    def _nearest(self, hull: np.ndarray, target: np.ndarray) -> np.ndarray:
+    def _nearest(self, hull: FloatArray, target: FloatArray) -> FloatArray:
         """The support's point nearest to `target`: the hull's nearest point moved toward the target
         by the radius, or the target itself within the radius of the hull."""
         on_hull = nearest_in_polygon(hull, target)
@@ -70,7 +71,7 @@ class Support:
         return target if gap <= self.radius else on_hull + (target - on_hull) * (self.radius / gap)
 
 
-def convex_hull(points: np.ndarray) -> np.ndarray:
+def convex_hull(points: FloatArray) -> FloatArray:
     """Andrew's monotone chain, counter-clockwise, (V, 2)."""
     pts = sorted({(float(x), float(y)) for x, y in np.round(points, 12)})
     if len(pts) < 3:
@@ -92,21 +93,21 @@ def _turn(a: tuple[float, float], b: tuple[float, float], c: tuple[float, float]
     return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
 
 
-def nearest_in_polygon(polygon: np.ndarray, point: np.ndarray) -> np.ndarray:
+def nearest_in_polygon(polygon: FloatArray, point: FloatArray) -> FloatArray:
     """The point itself if inside the convex polygon (counter-clockwise), else the nearest point of
     its boundary; a polygon of one or two vertices is a point or a segment."""
     if len(polygon) == 1:
-        return polygon[0].astype(float)
+        return polygon[0].astype(np.float64)
     edges = np.roll(polygon, -1, axis=0) - polygon
     rel = point - polygon
     if len(polygon) > 2 and np.all(edges[:, 0] * rel[:, 1] - edges[:, 1] * rel[:, 0] >= 0.0):
-        return np.asarray(point, dtype=float)
+        return np.asarray(point, dtype=np.float64)
     along = np.einsum("ij,ij->i", rel, edges) / np.maximum(np.einsum("ij,ij->i", edges, edges), 1e-18)
     candidates = polygon + np.clip(along, 0.0, 1.0)[:, None] * edges
     return candidates[np.argmin(np.linalg.norm(candidates - point, axis=1))]
 
 
-def _capsule_exit(start: np.ndarray, unit: np.ndarray, a: np.ndarray, b: np.ndarray, radius: float) -> float:
+def _capsule_exit(start: FloatArray, unit: FloatArray, a: FloatArray, b: FloatArray, radius: float) -> float:
     """The largest t with start + t unit within `radius` of the segment a-b (-inf if none): the
     strip beside the segment, then the discs at its ends."""
     best = max(_disc_exit(start, unit, a, radius), _disc_exit(start, unit, b, radius))
@@ -127,7 +128,7 @@ def _capsule_exit(start: np.ndarray, unit: np.ndarray, a: np.ndarray, b: np.ndar
     return max(best, high) if low <= high else best
 
 
-def _disc_exit(start: np.ndarray, unit: np.ndarray, centre: np.ndarray, radius: float) -> float:
+def _disc_exit(start: FloatArray, unit: FloatArray, centre: FloatArray, radius: float) -> float:
     """The largest t with start + t unit within `radius` of `centre` (-inf if the line misses)."""
     rel = start - centre
     half = float(rel @ unit)
@@ -151,12 +152,12 @@ class SoleGeometry:
         self.is_foot = np.isin(self.geom_body, foot_bodies(ragdoll))
         self.radius = float(np.mean(self.probe.radii[self.is_foot]))
 
-    def lowest_sole(self, qpos: np.ndarray) -> float:
+    def lowest_sole(self, qpos: FloatArray) -> float:
         """Height of the lowest point of the soles at these joint positions (m)."""
         _, lowest = self.probe.capsule_ends(qpos)
         return float(lowest[np.repeat(self.is_foot, 2)].min())
 
-    def support(self, qpos: np.ndarray, floor: float, touching: np.ndarray | None = None) -> Support:
+    def support(self, qpos: FloatArray, floor: float, touching: BoolArray | None = None) -> Support:
         """The support at these joint positions. touching: (B,) which ragdoll bodies touch the floor
         (SimResult.contacts of the sample), or None to judge it from the geometry."""
         ends, lowest = self.probe.capsule_ends(qpos)
@@ -168,7 +169,7 @@ class SoleGeometry:
         return Support(ends[on_floor, :2], self.radius, down)
 
 
-def _lower_end(lowest: np.ndarray) -> np.ndarray:
+def _lower_end(lowest: FloatArray) -> BoolArray:
     """(G, 2) True at each capsule's lower end (a body that touches with neither end within the gap
     touches with its lower one)."""
     pairs = lowest.reshape(-1, 2)

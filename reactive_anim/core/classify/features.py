@@ -53,6 +53,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..model.arrays import AnyFloatArray, FloatArray
 from ..model.errors import SkeletonError
 from ..model.skeleton import Motion, Skeleton, forward_kinematics
 from ..physics.joints import mocap_qpos
@@ -122,7 +123,7 @@ class Body:
         return cls(joints=joints, leg_length=leg_length(skeleton, roles))
 
 
-def spine_frame(body: Body, positions: np.ndarray) -> np.ndarray:
+def spine_frame(body: Body, positions: FloatArray) -> FloatArray:
     """Rows X (forward), Y (left), Z (up) of the spine frame (see the module docstring), (3, 3),
     from one pose's joint positions (J, 3)."""
     j = body.joints
@@ -144,17 +145,17 @@ class ReactionState:
     support: the base of support at C; floor: the floor's height.
     """
 
-    positions_b: np.ndarray
-    com_b: np.ndarray
-    positions_c: np.ndarray
-    com_c: np.ndarray
-    com_velocity: np.ndarray
-    motion_com: np.ndarray
-    motion_velocity: np.ndarray
+    positions_b: FloatArray
+    com_b: FloatArray
+    positions_c: FloatArray
+    com_c: FloatArray
+    com_velocity: FloatArray
+    motion_com: FloatArray
+    motion_velocity: FloatArray
     support: Support
     floor: float
 
-    def facing(self, body: Body) -> np.ndarray:
+    def facing(self, body: Body) -> FloatArray:
         """The spine frame at B, (3, 3)."""
         return spine_frame(body, self.positions_b)
 
@@ -162,7 +163,7 @@ class ReactionState:
         """The inverted pendulum's eigenfrequency at the motion's centre of mass height at C."""
         return capture.eigenfrequency(float(self.motion_com[2] - self.floor))
 
-    def xcom_departure(self) -> np.ndarray:
+    def xcom_departure(self) -> FloatArray:
         """XCoM(body at C) - XCoM(motion at C), horizontal, world (2,)."""
         omega = self.omega()
         return capture.xcom(self.com_c, self.com_velocity, omega) - capture.xcom(
@@ -175,7 +176,7 @@ class ReactionState:
         return self.support.reach(motion_xcom, self.xcom_departure())
 
 
-def reaction_features(body: Body, state: ReactionState) -> np.ndarray:
+def reaction_features(body: Body, state: ReactionState) -> FloatArray:
     """EXTENDED_FEATURES (the paper's nine first): lengths in leg lengths, speeds in sqrt(g L)."""
     frame = state.facing(body)
     moved = state.positions_c - state.positions_b
@@ -199,14 +200,14 @@ def reaction_features(body: Body, state: ReactionState) -> np.ndarray:
     )
 
 
-def _direction(local: np.ndarray, distance: float) -> list[float]:
+def _direction(local: FloatArray, distance: float) -> list[float]:
     """Cosine and |sine| of a horizontal vector's angle from forward (both 0 for no vector)."""
     if distance <= 0.0:
         return [0.0, 0.0]
     return [float(local[0]) / distance, abs(float(local[1])) / distance]
 
 
-def select(features: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
+def select(features: AnyFloatArray, names: tuple[str, ...]) -> AnyFloatArray:
     """The columns `names` of EXTENDED_FEATURES rows (..., 27), e.g. PAPER_FEATURES."""
     unknown = [n for n in names if n not in EXTENDED_FEATURES]
     if unknown:
@@ -214,7 +215,7 @@ def select(features: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
     return features[..., [EXTENDED_FEATURES.index(n) for n in names]]
 
 
-def mirrored(features: np.ndarray) -> np.ndarray:
+def mirrored(features: AnyFloatArray) -> FloatArray:
     """EXTENDED_FEATURES rows (..., 27) of the same pushes seen in a left-right mirror.
 
     Mirrored, the hips and shoulders swap sides, so the spine frame keeps its axes and every
@@ -223,7 +224,7 @@ def mirrored(features: np.ndarray) -> np.ndarray:
     classes.mirror_image; every other class its own), so training on both sides doubles the data
     for free.
     """
-    out = np.array(features, dtype=float)
+    out = np.array(features, dtype=np.float64)
     out[..., _LATERAL] *= -1.0
     return out
 
@@ -241,9 +242,9 @@ class FeatureReader:
         self.ragdoll = ragdoll
         self.body = Body.of(ragdoll.skeleton, ragdoll.roles)
         self.soles = SoleGeometry(ragdoll)
-        self._kept: dict[int, tuple[Motion, dict[int, np.ndarray]]] = {}
+        self._kept: dict[int, tuple[Motion, dict[int, FloatArray]]] = {}
 
-    def facing(self, motion: Motion, frame: float) -> np.ndarray:
+    def facing(self, motion: Motion, frame: float) -> FloatArray:
         """The spine frame of the motion at a frame (nearest), (3, 3)."""
         return spine_frame(self.body, _positions((motion, _clamp_frame(frame, motion)))[0])
 
@@ -296,7 +297,7 @@ class FeatureReader:
         qpos = mocap_qpos(self.ragdoll, motion, np.arange(motion.num_frames))
         return float(np.percentile([self.soles.lowest_sole(q) for q in qpos], CAPTURE_FLOOR_PERCENTILE))
 
-    def _com(self, motion: Motion, frames: list[int]) -> np.ndarray:
+    def _com(self, motion: Motion, frames: list[int]) -> FloatArray:
         """The ragdoll's centre of mass (n, 3) in some mocap frames."""
         kept = self._kept_for(motion)
         missing = [f for f in dict.fromkeys(frames) if f not in kept]
@@ -305,7 +306,7 @@ class FeatureReader:
                 kept[frame] = self.soles.probe.centre_of_mass(qpos)
         return np.array([kept[f] for f in frames])
 
-    def _kept_for(self, motion: Motion) -> dict[int, np.ndarray]:
+    def _kept_for(self, motion: Motion) -> dict[int, FloatArray]:
         """The centres of mass kept for this motion (the object, not just its id); the oldest motion
         is dropped past KEPT_MOTIONS."""
         entry = self._kept.get(id(motion))
@@ -316,7 +317,7 @@ class FeatureReader:
         return entry[1]
 
 
-def _positions(*frames: tuple[Motion, int]) -> np.ndarray:
+def _positions(*frames: tuple[Motion, int]) -> FloatArray:
     """Joint positions (n, J, 3) of (motion, frame) pairs on one skeleton, in one pass of forward
     kinematics (its cost is per joint, not per frame)."""
     skeleton = frames[0][0].skeleton
@@ -326,7 +327,7 @@ def _positions(*frames: tuple[Motion, int]) -> np.ndarray:
     return forward_kinematics(skeleton, root, local, offsets)[0]
 
 
-def _velocity(earlier: np.ndarray, later: np.ndarray, frames: int, fps: float) -> np.ndarray:
+def _velocity(earlier: FloatArray, later: FloatArray, frames: int, fps: float) -> FloatArray:
     """Central (or one-sided, at a motion's ends) difference; zero over no frames."""
     return (later - earlier) * fps / frames if frames > 0 else np.zeros(3)
 

@@ -40,6 +40,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from ..model.arrays import FloatArray
+
 GRAVITY = 9.81
 ASSIST_STEPS = 4
 YAW_RADIUS = 0.14  # spin radius of gyration per metre of pelvis height
@@ -61,7 +63,7 @@ class RootAssist:
 class AssistController:
     """Applies the assist to one run's MjData; remembers the largest fraction of body weight used."""
 
-    def __init__(self, assist: RootAssist, model: mujoco.MjModel, pelvis_body: int, targets: np.ndarray) -> None:
+    def __init__(self, assist: RootAssist, model: mujoco.MjModel, pelvis_body: int, targets: FloatArray) -> None:
         """targets: (K, 7) the target's pelvis position and orientation (free-joint qpos) per frame."""
         self.assist = assist
         self.body = pelvis_body

@@ -23,11 +23,13 @@ What we do differently, and why:
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import TypeVar
 
 import numpy as np
+import numpy.typing as npt
 
 from ..model import quat
-from ..model.arrays import FloatArray, IntArray
+from ..model.arrays import FloatArray, IndexArray
 from ..model.errors import SimulationError, SkeletonError
 from ..model.roles import part_of, side_of
 from ..model.skeleton import Motion, Skeleton, forward_kinematics
@@ -59,8 +61,8 @@ class RagdollBody:
     hinge_sign: FloatArray = field(default_factory=lambda: np.ones(3))
     ranges: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))
     body_id: int = -1
-    qpos_adr: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    dof_adr: IntArray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    qpos_adr: IndexArray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    dof_adr: IndexArray = field(default_factory=lambda: np.zeros(0, dtype=int))
     subtree_mass: float = 0.0
 
 
@@ -101,7 +103,7 @@ def _tips(skeleton: Skeleton, joints: list[int], pos: FloatArray, grot: FloatArr
     return np.array(pts)
 
 
-def body_layout(skeleton: Skeleton, roles: dict[str, str]) -> tuple[list[RagdollBody], IntArray]:
+def body_layout(skeleton: Skeleton, roles: dict[str, str]) -> tuple[list[RagdollBody], IndexArray]:
     """Bodies in parent-first order, and the body each skeleton joint belongs to."""
     index = {role: skeleton.index(name) for role, name in roles.items()}
     owner: dict[int, list[str]] = {}
@@ -113,7 +115,7 @@ def body_layout(skeleton: Skeleton, roles: dict[str, str]) -> tuple[list[Ragdoll
     body_joints.remove(index["pelvis"])
     body_joints.insert(0, index["pelvis"])
     # Each joint belongs to the body of its nearest ancestor-or-self that has one.
-    body_of_joint = np.zeros(skeleton.num_joints, dtype=np.int64)
+    body_of_joint = np.zeros(skeleton.num_joints, dtype=int)
     slot = {j: k for k, j in enumerate(body_joints)}
     for j in range(skeleton.num_joints):
         a = j
@@ -306,7 +308,7 @@ def _parent(skeleton: Skeleton, joint: int) -> int:
     return int(skeleton.parents[joint])
 
 
-def find_leaf_joints(skeleton: Skeleton, bodies: list[RagdollBody]) -> IntArray:
+def find_leaf_joints(skeleton: Skeleton, bodies: list[RagdollBody]) -> IndexArray:
     """Joints without a body that have no body below them: they move nothing the simulation sees, so
     the output takes their rotations from the mocap (toes, fingers, head, face)."""
     body_joints = {b.joint for b in bodies}
@@ -316,12 +318,12 @@ def find_leaf_joints(skeleton: Skeleton, bodies: list[RagdollBody]) -> IntArray:
         while p >= 0 and p not in carries:
             carries.add(p)
             p = int(skeleton.parents[p])
-    return np.array([j for j in range(skeleton.num_joints) if j not in body_joints | carries], dtype=np.int64)
+    return np.array([j for j in range(skeleton.num_joints) if j not in body_joints | carries], dtype=int)
 
 
 def find_spine_segments(
-    skeleton: Skeleton, body_of_joint: IntArray, index: dict[str, int]
-) -> tuple[tuple[int, IntArray, FloatArray], ...]:
+    skeleton: Skeleton, body_of_joint: IndexArray, index: dict[str, int]
+) -> tuple[tuple[int, IndexArray, FloatArray], ...]:
     """How the trunk's and the neck's bends are shared among the skeleton's joints.
 
     The ragdoll bends the trunk at the waist and back bodies and the neck at one, while skeletons
@@ -330,7 +332,7 @@ def find_spine_segments(
     path and the cumulative share of the body's bend each joint carries, by bone length (a longer
     bone bends more, as vertebrae add up; the head counts as long as the neck).
     """
-    segments: list[tuple[int, IntArray, FloatArray]] = []
+    segments: list[tuple[int, IndexArray, FloatArray]] = []
     for first, last, after in (
         (index["waist"], _parent(skeleton, index["neck"]), index["neck"]),
         (index["neck"], index["head"], None),
@@ -350,8 +352,9 @@ def find_spine_segments(
             mine = owner == k
             share = lengths[mine]
             total = float(share.sum())
-            weights = np.cumsum(share) / total if total > 0 else np.arange(1, mine.sum() + 1) / mine.sum()
-            if mine.sum() > 1:
+            count = int(mine.sum())
+            weights = np.cumsum(share) / total if total > 0 else np.arange(1, count + 1) / count
+            if count > 1:
                 segments.append((int(k), read_only(joints[mine]), read_only(weights)))
     return tuple(segments)
 
@@ -414,7 +417,10 @@ def with_hinges(
     return [replace(b, subtree_mass=m) for b, m in zip(out, subtree, strict=True)]
 
 
-def read_only(array: np.ndarray) -> np.ndarray:
+_Scalar = TypeVar("_Scalar", bound=np.generic)
+
+
+def read_only(array: npt.NDArray[_Scalar]) -> npt.NDArray[_Scalar]:
     array = np.array(array)
     array.flags.writeable = False
     return array

@@ -11,6 +11,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from ..model.arrays import BoolArray, FloatArray
 from ..model.skeleton import Motion
 from .joints import HeldPose, MocapTable, mocap_table
 from .ragdoll import Ragdoll
@@ -51,7 +52,7 @@ def ground_from_table(ws: Workspace, table: MocapTable, frame: float, held: Held
         sole_axis_z[n] = data.geom_xmat[soles, 8]  # the capsule axis' z: row-major (3, 3), [2, 2]
     size = model.geom_size[soles]
     heights = sole_z - np.abs(sole_axis_z * size[:, 1]) - size[:, 0]
-    lowest = heights.min(axis=1)
+    lowest: FloatArray = heights.min(axis=1)
     # The median frame's lowest sole: the standing foot, robust to heel-strike dips and flight
     # phases; but never above the start frame's lowest sole, so the start does not pop out of the
     # floor, nor above any body at the start (a character lying or kneeling with its feet up).
@@ -59,7 +60,7 @@ def ground_from_table(ws: Workspace, table: MocapTable, frame: float, held: Held
     return float(min(np.median(lowest), lowest[start], _lowest_body_point(ws, data, table.qpos[rows[start]])))
 
 
-def _lowest_body_point(ws: Workspace, data: mujoco.MjData, qpos: np.ndarray) -> float:
+def _lowest_body_point(ws: Workspace, data: mujoco.MjData, qpos: FloatArray) -> float:
     """The lowest point of any ragdoll geom (capsules and spheres) in the pose `qpos`."""
     model = ws.model
     data.qpos[:] = qpos
@@ -70,7 +71,7 @@ def _lowest_body_point(ws: Workspace, data: mujoco.MjData, qpos: np.ndarray) -> 
     return float(np.min(data.geom_xpos[geoms, 2] - np.abs(data.geom_xmat[geoms, 8] * half) - size[:, 0]))
 
 
-def floor_contacts(ws: Workspace, data: mujoco.MjData) -> np.ndarray:
+def floor_contacts(ws: Workspace, data: mujoco.MjData) -> BoolArray:
     """(B,) which ragdoll bodies touch the floor now (a contact between the floor and their geom)."""
     touching = np.zeros(len(ws.ragdoll.bodies), dtype=bool)
     if data.ncon:

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model import quat
+from ..model.arrays import FloatArray, IndexArray
 from ..model.errors import SimulationError, SkeletonError
 from ..model.skeleton import Motion
 from .ragdoll import Ragdoll
@@ -37,15 +38,15 @@ class HeldPose:
     the ragdoll's joint positions for it (mocap_qpos).
     """
 
-    local_rot: np.ndarray
-    offsets: np.ndarray
-    root_pos: np.ndarray
-    global_pos: np.ndarray
-    global_rot: np.ndarray
-    qpos: np.ndarray
+    local_rot: FloatArray
+    offsets: FloatArray
+    root_pos: FloatArray
+    global_pos: FloatArray
+    global_rot: FloatArray
+    qpos: FloatArray
 
 
-def _check_finite(motion: Motion, frames: np.ndarray) -> None:
+def _check_finite(motion: Motion, frames: IndexArray) -> None:
     rot = motion.local_rot[frames]
     bad = ~np.all(np.isfinite(rot), axis=-1)
     if np.any(bad):
@@ -62,8 +63,8 @@ def _check_finite(motion: Motion, frames: np.ndarray) -> None:
 
 
 def _kinematics(
-    ragdoll: Ragdoll, root_pos: np.ndarray, local_rot: np.ndarray, offsets: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
+    ragdoll: Ragdoll, root_pos: FloatArray, local_rot: FloatArray, offsets: FloatArray
+) -> tuple[FloatArray, FloatArray]:
     """Forward kinematics (N, J, 3) and (N, J, 4) of only the joints the ragdoll needs (body joints
     and their ancestors; fingers and face bones are left at zero), vectorised over frames.
     Rotation matrices inside: a 3x3 product per joint is far cheaper than quaternion helpers on
@@ -92,18 +93,18 @@ class _MocapPoses:
     held pose of one of those frames needs no second FK pass (row k of the batched FK is bitwise the
     FK of that frame alone)."""
 
-    qpos: np.ndarray  # (N, nq)
-    local_rot: np.ndarray  # (N, J, 4) normalised
-    offsets: np.ndarray  # (N, J, 3)
-    root_pos: np.ndarray  # (N, 3)
-    global_pos: np.ndarray  # (N, J, 3), kinematic joints only
-    global_rot: np.ndarray  # (N, J, 4), kinematic joints only
+    qpos: FloatArray  # (N, nq)
+    local_rot: FloatArray  # (N, J, 4) normalised
+    offsets: FloatArray  # (N, J, 3)
+    root_pos: FloatArray  # (N, 3)
+    global_pos: FloatArray  # (N, J, 3), kinematic joints only
+    global_rot: FloatArray  # (N, J, 4), kinematic joints only
 
     def held(self, k: int) -> HeldPose:
         """Row k as a HeldPose, with arrays of its own."""
         return HeldPose(
             local_rot=self.local_rot[k].copy(),
-            offsets=np.array(self.offsets[k], dtype=float),
+            offsets=np.array(self.offsets[k], dtype=np.float64),
             root_pos=self.root_pos[k].copy(),
             global_pos=self.global_pos[k].copy(),
             global_rot=self.global_rot[k].copy(),
@@ -111,7 +112,7 @@ class _MocapPoses:
         )
 
 
-def mocap_qpos(ragdoll: Ragdoll, motion: Motion, frames: np.ndarray) -> np.ndarray:
+def mocap_qpos(ragdoll: Ragdoll, motion: Motion, frames: IndexArray) -> FloatArray:
     """Ragdoll joint positions (N, nq) of the given frames of a motion of the ragdoll's skeleton.
 
     Root: pelvis position and the pelvis body's rotation away from the neutral pose. Each hinge
@@ -121,7 +122,7 @@ def mocap_qpos(ragdoll: Ragdoll, motion: Motion, frames: np.ndarray) -> np.ndarr
     return _mocap_poses(ragdoll, motion, frames).qpos
 
 
-def _mocap_poses(ragdoll: Ragdoll, motion: Motion, frames: np.ndarray) -> _MocapPoses:
+def _mocap_poses(ragdoll: Ragdoll, motion: Motion, frames: IndexArray) -> _MocapPoses:
     """mocap_qpos, keeping the FK on the way (see _MocapPoses)."""
     if motion.skeleton.names != ragdoll.skeleton.names:
         raise SkeletonError("the motion's skeleton is not the ragdoll's skeleton (joint names differ)")
@@ -148,7 +149,7 @@ def _mocap_poses(ragdoll: Ragdoll, motion: Motion, frames: np.ndarray) -> _Mocap
     )
 
 
-def _interp_qpos(table: np.ndarray, t: float) -> np.ndarray:
+def _interp_qpos(table: FloatArray, t: float) -> FloatArray:
     """Row-interpolate a per-frame qpos table at fractional index t (root rotation by slerp)."""
     i = int(np.clip(np.floor(t), 0, len(table) - 1))
     j = min(i + 1, len(table) - 1)
@@ -163,10 +164,10 @@ class MocapTable:
     """Ragdoll joint positions of the motion's frames first .. first + len(qpos) - 1 (one FK pass)."""
 
     first: int
-    qpos: np.ndarray
+    qpos: FloatArray
     poses: _MocapPoses
 
-    def at(self, frame: float) -> np.ndarray:
+    def at(self, frame: float) -> FloatArray:
         return _interp_qpos(self.qpos, frame - self.first)
 
     def held(self, frame: int) -> HeldPose:
@@ -186,14 +187,15 @@ def mocap_table(ragdoll: Ragdoll, motion: Motion, lo: float, hi: float) -> Mocap
     return MocapTable(first, poses.qpos, poses)
 
 
-def same_turns(ragdoll: Ragdoll, targets: np.ndarray, start: np.ndarray) -> None:
+def same_turns(ragdoll: Ragdoll, targets: FloatArray, start: FloatArray) -> None:
     """Shift each hinge's target angles (K, nq) by whole turns, in place, so that the first lies
     within half a turn of the start's. Angles are unwrapped along one motion's frames, so a start
     from another motion (the end of BC, tracking a clip) can sit a whole turn from its target: a
     shoulder raised overhead in a sword slash was 6.1 rad from the target it then tried to reach
     (a 5,400 J jump in one frame, SimulationError)."""
     hinges = ragdoll.index.hinge_qpos
-    turns = np.round((start[hinges] - targets[0, hinges]) / (2.0 * np.pi))
+    gap: FloatArray = (start[hinges] - targets[0, hinges]) / (2.0 * np.pi)
+    turns = np.round(gap)
     if np.any(turns):
         targets[:, hinges] += 2.0 * np.pi * turns
 
@@ -201,10 +203,10 @@ def same_turns(ragdoll: Ragdoll, targets: np.ndarray, start: np.ndarray) -> None
 def to_motion(
     ragdoll: Ragdoll,
     held: HeldPose,
-    follow: np.ndarray,
-    body_rot: np.ndarray,
-    pelvis_pos: np.ndarray,
-    held_body_rot: np.ndarray,
+    follow: FloatArray,
+    body_rot: FloatArray,
+    pelvis_pos: FloatArray,
+    held_body_rot: FloatArray,
     *,
     fps: float,
 ) -> Motion:
@@ -237,7 +239,7 @@ def to_motion(
     return Motion(skeleton=skeleton, fps=fps, root_pos=root_pos, local_rot=local, local_pos=local_pos)
 
 
-def _body_local_rotations(ragdoll: Ragdoll, held: HeldPose, body_rot: np.ndarray) -> np.ndarray:
+def _body_local_rotations(ragdoll: Ragdoll, held: HeldPose, body_rot: FloatArray) -> FloatArray:
     """(N, B, 4) the local rotations of the body joints for body rotations (N, B, 4): each body's
     joint turns from its parent body, carried through the held merged bones between them (a ground
     root bone above the pelvis holds)."""
@@ -253,7 +255,7 @@ def _body_local_rotations(ragdoll: Ragdoll, held: HeldPose, body_rot: np.ndarray
     return body_local
 
 
-def _share_bends(ragdoll: Ragdoll, local: np.ndarray, held: np.ndarray) -> None:
+def _share_bends(ragdoll: Ragdoll, local: FloatArray, held: FloatArray) -> None:
     """Spread each spine body's bend over the skeleton joints it spans, in place.
 
     The rigid body turns its first joint s0 by D (local[s0] = D held[s0], D in s0's parent frame) and
@@ -273,6 +275,6 @@ def _share_bends(ragdoll: Ragdoll, local: np.ndarray, held: np.ndarray) -> None:
         local[:, joints] = quat.mul(quat.conj(previous), cumulative)
 
 
-def local_rotations(motion: Motion, frames: np.ndarray) -> np.ndarray:
+def local_rotations(motion: Motion, frames: IndexArray) -> FloatArray:
     """(len(frames), J, 4) normalised local rotations; frames past the end hold the last."""
     return quat.normalize(motion.local_rot[np.clip(frames, 0, motion.num_frames - 1)])

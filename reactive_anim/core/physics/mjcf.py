@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..model.errors import SimulationError
 from ..model.roles import part_of
@@ -38,7 +39,7 @@ SOLE_CONTACT_DIMENSIONS = 4
 ACTUATOR_KP, ACTUATOR_KV = 1.0, 0.1
 
 
-def _fmt(v) -> str:
+def _fmt(v: ArrayLike) -> str:
     return " ".join(f"{float(x):.6g}" for x in np.atleast_1d(v))
 
 
@@ -152,7 +153,7 @@ def compile_without_touching_pairs(bodies: list[RagdollBody], geometry: Geometry
     model = _compile(_mjcf(bodies, geometry, []))
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    excludes = set()
+    excludes: set[tuple[str, str]] = set()
     for c in data.contact[: data.ncon]:
         b1, b2 = int(model.geom_bodyid[c.geom1]), int(model.geom_bodyid[c.geom2])
         if model.body_mocapid[b1] < 0 and model.body_mocapid[b2] < 0 and b1 > 0 and b2 > 0:

@@ -7,6 +7,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from ..model.arrays import FloatArray
 from .ragdoll import Ragdoll
 
 
@@ -24,9 +25,9 @@ class PoseProbe:
         self.geoms = np.flatnonzero(np.isin(model.geom_bodyid, ragdoll.index.body_ids))
         body_index = {int(b): k for k, b in enumerate(ragdoll.index.body_ids)}
         self.geom_body = np.array([body_index[int(model.geom_bodyid[g])] for g in self.geoms])
-        self.radii = model.geom_size[self.geoms, 0]
+        self.radii: FloatArray = model.geom_size[self.geoms, 0]
 
-    def capsule_ends(self, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def capsule_ends(self, qpos: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Both end centres of each capsule (a sphere: its centre twice), (2G, 3), and the height of
         the surface's lowest point below each, (2G,), in the pose qpos."""
         model, data, geoms = self.model, self.data, self.geoms
@@ -38,7 +39,7 @@ class PoseProbe:
         ends = np.stack([centre - axis * half[:, None], centre + axis * half[:, None]], axis=1).reshape(-1, 3)
         return ends, ends[:, 2] - np.repeat(model.geom_size[geoms, 0], 2)
 
-    def centre_of_mass(self, qpos: np.ndarray) -> np.ndarray:
+    def centre_of_mass(self, qpos: FloatArray) -> FloatArray:
         """(3,) the whole ragdoll's centre of mass in the pose qpos."""
         self.data.qpos[:] = qpos
         mujoco.mj_kinematics(self.model, self.data)

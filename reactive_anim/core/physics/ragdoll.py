@@ -15,6 +15,7 @@ import mujoco
 import numpy as np
 
 from ..model import quat
+from ..model.arrays import FloatArray, IndexArray
 from ..model.errors import SimulationError, SkeletonError
 from ..model.roles import REQUIRED_ROLES, assign_roles, part_of
 from ..model.skeleton import Motion, Skeleton, forward_kinematics
@@ -52,25 +53,25 @@ class JointIndex:
     bodies and MuJoCo's arrays index with them instead of looping over bodies. In body, hinge (the
     bodies' hinges in body order) or actuator order."""
 
-    kinematic_joints: np.ndarray  # skeleton joints FK must visit: body joints and their ancestors
-    kinematic_levels: tuple[tuple[np.ndarray, np.ndarray], ...]  # those below the root, (joints, parents) by depth
-    frame_quat: np.ndarray  # (B, 4) joint frame (e1, e2, e3 as columns) per body
-    hinge_body: np.ndarray  # per hinge: its body, Euler slot, qpos and dof address, abduction sign
-    hinge_slot: np.ndarray
-    hinge_qpos: np.ndarray
-    hinge_dof: np.ndarray
-    hinge_sign: np.ndarray
-    body_ids: np.ndarray  # MuJoCo body id per ragdoll body
-    body_joints: np.ndarray  # skeleton joint per ragdoll body
-    body_parents: np.ndarray  # parent body per ragdoll body, the root's own index (0) for the root
-    actuator_qpos: np.ndarray  # qpos address of each actuator's joint
-    actuator_mass: np.ndarray  # mass each actuator's servo moves (mass_moved)
-    actuator_group: np.ndarray  # each actuator's index into JOINT_GROUPS
-    limit_lo: np.ndarray  # per hinge (hinge order), its range in radians
-    limit_hi: np.ndarray
-    sole_geoms: np.ndarray  # geom ids of the two feet's sole capsules
+    kinematic_joints: IndexArray  # skeleton joints FK must visit: body joints and their ancestors
+    kinematic_levels: tuple[tuple[IndexArray, IndexArray], ...]  # those below the root, (joints, parents) by depth
+    frame_quat: FloatArray  # (B, 4) joint frame (e1, e2, e3 as columns) per body
+    hinge_body: IndexArray  # per hinge: its body, Euler slot, qpos and dof address, abduction sign
+    hinge_slot: IndexArray
+    hinge_qpos: IndexArray
+    hinge_dof: IndexArray
+    hinge_sign: FloatArray
+    body_ids: IndexArray  # MuJoCo body id per ragdoll body
+    body_joints: IndexArray  # skeleton joint per ragdoll body
+    body_parents: IndexArray  # parent body per ragdoll body, the root's own index (0) for the root
+    actuator_qpos: IndexArray  # qpos address of each actuator's joint
+    actuator_mass: FloatArray  # mass each actuator's servo moves (mass_moved)
+    actuator_group: IndexArray  # each actuator's index into JOINT_GROUPS
+    limit_lo: FloatArray  # per hinge (hinge order), its range in radians
+    limit_hi: FloatArray
+    sole_geoms: IndexArray  # geom ids of the two feet's sole capsules
     floor_geom: int  # geom id of the floor plane
-    body_of_geom: np.ndarray  # per MuJoCo geom, the ragdoll body it belongs to (-1: the floor)
+    body_of_geom: IndexArray  # per MuJoCo geom, the ragdoll body it belongs to (-1: the floor)
     dof_body: dict[int, str]  # body name per hinge dof address
 
 
@@ -98,11 +99,11 @@ class Ragdoll:
     limits: dict[str, tuple[HingeRange, HingeRange, HingeRange]]
     total_mass: float
     bodies: tuple[RagdollBody, ...]
-    neutral_global_rot: np.ndarray
-    body_of_joint: np.ndarray
+    neutral_global_rot: FloatArray
+    body_of_joint: IndexArray
     compile_seconds: float
-    leaf_joints: np.ndarray  # merged joints with no body below them (toes, fingers, head, face)
-    spine_segments: tuple[tuple[int, np.ndarray, np.ndarray], ...]  # (body, joints, weights): see find_spine_segments
+    leaf_joints: IndexArray  # merged joints with no body below them (toes, fingers, head, face)
+    spine_segments: tuple[tuple[int, IndexArray, FloatArray], ...]  # (body, joints, weights): see find_spine_segments
     index: JointIndex
 
     @property
@@ -180,7 +181,9 @@ def build_ragdoll(
         body_of_joint=read_only(body_of_joint),
         compile_seconds=compile_seconds,
         leaf_joints=read_only(
-            np.setdiff1d(find_leaf_joints(skeleton, bodies), np.concatenate([j for _, j, _ in segments] or [[]]))
+            np.setdiff1d(
+                find_leaf_joints(skeleton, bodies), np.concatenate([j for _, j, _ in segments] or [np.zeros(0)])
+            )
         ),
         spine_segments=segments,
         index=_joint_index(skeleton, bodies, model),
@@ -197,7 +200,7 @@ def _with_addresses(body: RagdollBody, model: mujoco.MjModel) -> RagdollBody:
     )
 
 
-def _body_of_geom(bodies: list[RagdollBody], model: mujoco.MjModel) -> np.ndarray:
+def _body_of_geom(bodies: list[RagdollBody], model: mujoco.MjModel) -> IndexArray:
     slot = {b.body_id: k for k, b in enumerate(bodies)}
     return np.array([slot.get(int(model.geom_bodyid[g]), -1) for g in range(model.ngeom)], dtype=int)
 

@@ -30,6 +30,7 @@ import mujoco
 import numpy as np
 
 from ..model import quat
+from ..model.arrays import BoolArray, FloatArray
 from ..model.errors import SimulationError
 from ..model.impact import Impact
 from ..model.skeleton import Motion
@@ -58,8 +59,8 @@ REACTION_WINDOW = 0.25  # seconds, BC: about a human reaction time (paper: ~15 f
 class SimState:
     """A ragdoll state to start or continue a simulation from."""
 
-    qpos: np.ndarray
-    qvel: np.ndarray
+    qpos: FloatArray
+    qvel: FloatArray
     held: HeldPose
     floor: float = 0.0
 
@@ -80,19 +81,19 @@ class SimResult:
     """
 
     motion: Motion
-    frames: np.ndarray
-    qpos: np.ndarray
-    qvel: np.ndarray
-    com: np.ndarray
-    com_velocity: np.ndarray
+    frames: FloatArray
+    qpos: FloatArray
+    qvel: FloatArray
+    com: FloatArray
+    com_velocity: FloatArray
     floor: float
-    contacts: np.ndarray
+    contacts: BoolArray
     first_contact: dict[str, float]
     state: SimState
     assist_fraction: float = 0.0
 
     @property
-    def com_height(self) -> np.ndarray:
+    def com_height(self) -> FloatArray:
         """(T,) the centre of mass's height above the run's floor."""
         return self.com[:, 2] - self.floor
 
@@ -136,8 +137,8 @@ def _state_from_table(ws: Workspace, motion: Motion, frame: float, table: MocapT
 
 
 def _samples(
-    ws: Workspace, qpos: np.ndarray, qvel: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    ws: Workspace, qpos: FloatArray, qvel: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Body rotations (N, B, 4), pelvis positions (N, 3), centre of mass and its velocity (N, 3)."""
     model = ws.model
     data = reset_data(ws.kin_data)
@@ -162,7 +163,7 @@ def _samples(
     return xquat[:, ids], pelvis, com, com_vel
 
 
-def _body_rotations(ws: Workspace, qpos: np.ndarray) -> np.ndarray:
+def _body_rotations(ws: Workspace, qpos: FloatArray) -> FloatArray:
     """(B, 4) the ragdoll bodies' rotations in the pose qpos (on the workspace's placed bodies)."""
     data = reset_data(ws.kin_data)
     data.qpos[:] = qpos
@@ -183,14 +184,14 @@ class _Plan:
     assist: the root assist toward the targets' pelvis (balance.py), or None for pure PD.
     """
 
-    targets: np.ndarray
+    targets: FloatArray
     fps: float
-    sample_offsets: np.ndarray
+    sample_offsets: FloatArray
     start_offset: float
     gains: ServoGains
     hit: tuple[int, Impact] | None
     clock: float
-    follow: np.ndarray
+    follow: FloatArray
     assist: RootAssist | None = None
 
 
@@ -214,7 +215,7 @@ def _run(ws: Workspace, start: SimState, plan: _Plan) -> SimResult:
         return _step_and_sample(ws, start, plan, Watch(ws, data, plan.clock, messages))
 
 
-def _interp_rows(x: np.ndarray, table: np.ndarray) -> np.ndarray:
+def _interp_rows(x: FloatArray, table: FloatArray) -> FloatArray:
     """np.interp(x, arange(K), table[:, a]) for every column a at once, (len(x), A).
 
     The same arithmetic as numpy's interp (slope (y[j+1] - y[j]) / 1 times (x - j) plus y[j]; the end
@@ -232,7 +233,7 @@ def _interp_rows(x: np.ndarray, table: np.ndarray) -> np.ndarray:
     return out
 
 
-def _servo_setpoints(ws: Workspace, plan: _Plan, steps: int) -> np.ndarray:
+def _servo_setpoints(ws: Workspace, plan: _Plan, steps: int) -> FloatArray:
     """Servo set-points for every step, (steps, nu): the target's hinge angles interpolated at the
     step's time plus (kv / kp) times its velocity (see the module docstring)."""
     hinges = plan.targets[:, ws.ragdoll.index.actuator_qpos]
@@ -273,10 +274,10 @@ def _step_and_sample(ws: Workspace, start: SimState, plan: _Plan, watch: Watch) 
     held_rot = _body_rotations(ws, start.held.qpos)
     motion = to_motion(ws.ragdoll, start.held, plan.follow, rots, pelvis, held_rot, fps=plan.fps)
     end = SimState(qpos=qpos_arr[-1].copy(), qvel=qvel_arr[-1].copy(), held=start.held, floor=start.floor)
-    times = (np.asarray(plan.sample_offsets, dtype=float) - plan.start_offset) / plan.fps
+    times = (np.asarray(plan.sample_offsets, dtype=np.float64) - plan.start_offset) / plan.fps
     first = {body.name: float(times[np.argmax(contacts[:, k])])
              for k, body in enumerate(ws.ragdoll.bodies) if contacts[:, k].any()}  # fmt: skip
-    return SimResult(motion=motion, frames=np.asarray(plan.sample_offsets, dtype=float), qpos=qpos_arr,
+    return SimResult(motion=motion, frames=np.asarray(plan.sample_offsets, dtype=np.float64), qpos=qpos_arr,
                      qvel=qvel_arr, com=com, com_velocity=com_vel, floor=start.floor, contacts=contacts,
                      first_contact=first, state=end,
                      assist_fraction=0.0 if helper is None else helper.largest_fraction)  # fmt: skip
@@ -330,7 +331,7 @@ def simulate_impact(
     plan = _Plan(
         targets=np.concatenate([table.qpos, np.repeat(table.qpos[-1:], extra, axis=0)]),
         fps=motion.fps,
-        sample_offsets=np.arange(int(np.ceil(b)), c + 1, dtype=float) - table.first,
+        sample_offsets=np.arange(int(np.ceil(b)), c + 1, dtype=np.float64) - table.first,
         start_offset=b - table.first,
         gains=gains,
         hit=(body.body_id, impact),
@@ -374,7 +375,7 @@ def track(
     plan = _Plan(
         targets=mocap_qpos(ragdoll, target, frames),
         fps=target.fps,
-        sample_offsets=np.arange(0, n + 1, dtype=float),
+        sample_offsets=np.arange(0, n + 1, dtype=np.float64),
         start_offset=0.0,
         gains=gains,
         hit=None,

@@ -22,6 +22,7 @@ import mujoco
 import numpy as np
 
 from ..model import quat
+from ..model.arrays import FloatArray
 from ..model.errors import SimulationError
 from .anatomy import JOINT_GROUPS
 from .joints import HeldPose
@@ -49,9 +50,9 @@ class ServoGains:
     arms: float = 1.0
     neck: float = 1.0
 
-    def group_factors(self) -> np.ndarray:
+    def group_factors(self) -> FloatArray:
         """Factors in anatomy.JOINT_GROUPS order."""
-        return np.array([getattr(self, group) for group in JOINT_GROUPS])
+        return np.array([getattr(self, group) for group in JOINT_GROUPS], dtype=np.float64)
 
 
 CD_GAINS = ServoGains()
@@ -123,7 +124,7 @@ def set_servos(ws: Workspace, gains: ServoGains) -> None:
     model.actuator_biasprm[:, 2] = -kv
 
 
-def set_limits(ws: Workspace, qpos: np.ndarray) -> None:
+def set_limits(ws: Workspace, qpos: FloatArray) -> None:
     """Hinge ranges for one run: the profile's, widened where the start pose lies beyond them, so
     the run starts in the mocap's pose. Clamped to the range instead, a limb swung away from where
     the mocap put it: a get-up's sitting hips, flexed 154 degrees, clamped to 120, put the legs 30 cm
