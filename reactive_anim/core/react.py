@@ -55,6 +55,7 @@ from .model.arrays import FloatArray
 from .model.classes import CLASS_SLUGS, is_fall
 from .model.errors import Cancelled, ImpactError, LibraryError, SkeletonError
 from .model.impact import Impact
+from .model.rig import Rig
 from .model.skeleton import Motion, hold_root, static_root
 from .physics.balance import RootAssist
 from .physics.ragdoll import Ragdoll, build_ragdoll
@@ -147,18 +148,19 @@ class Reaction:
       transition (pose = the clip's); end_frame: the last frame of the reaction (clip, get-up).
     probabilities: class slug -> probability (empty without a classifier); predicted: the most
       probable class, or the override. scope: what the search covered ("all", a class, ...).
-    reaction_class, clip, jump_frame, cost, accepted: the match (jump_frame: the window's first
-      frame in the clip, library rate); placement: (yaw, (x, y)) that put the clip on the character:
-      its frame E (the window's last, matched to C) where the simulated body is at C.
+    match: the search's best window (search.Match), None when the motion was kept; reaction_class,
+      clip, jump_frame, cost, accepted and scope read it (jump_frame: the window's first frame in
+      the clip, library rate). placement: (yaw, (x, y)) that put the clip on the character: its
+      frame E (the window's last, matched to C) where the simulated body is at C.
     chained: the get-up clip that followed, if any; resumed_at: the original motion's frame at
       which it resumed (None: held the last pose, or resume off).
     going_down: the body was already down or going down at C, so the search looked among the falls,
       the outcome rule's first (_going_down), rather than at the classifier's choice.
     note: for the animator, why the reaction is not what the push called for (the library lacks
       its class: what it played instead, or that it kept the motion); empty when it is.
-    kept_motion: no clip was played: the push keeps its feet and the library has no class that does
-      (NEAR), so CD tracked back to the motion, which plays on unchanged from F (clip KEPT_CLIP,
-      cost 0, no placement).
+    kept_motion (match None): no clip was played: the push keeps its feet and the library has no
+      class that does (NEAR), so CD tracked back to the motion, which plays on unchanged from F
+      (clip KEPT_CLIP, cost 0, no placement); kept_class: the class it stands for then.
     timings: seconds per step (bc, classify, search, cd, blend, splice, total).
     """
 
@@ -169,20 +171,43 @@ class Reaction:
     end_frame: int
     probabilities: dict[str, float]
     predicted: str | None
-    scope: str
-    reaction_class: str
-    clip: str
-    jump_frame: int
-    cost: float
-    accepted: bool
+    match: Match | None
     placement: tuple[float, tuple[float, float]]
     chained: str | None
     resumed_at: int | None
     going_down: bool = False
     note: str = ""
-    kept_motion: bool = False
+    kept_class: str = ""
     timings: dict[str, float] = field(default_factory=dict[str, float])
     motion: Motion | None = field(default=None, repr=False)
+
+    @property
+    def kept_motion(self) -> bool:
+        return self.match is None
+
+    @property
+    def reaction_class(self) -> str:
+        return self.kept_class if self.match is None else self.match.reaction_class
+
+    @property
+    def clip(self) -> str:
+        return KEPT_CLIP if self.match is None else self.match.clip
+
+    @property
+    def jump_frame(self) -> int:
+        return 0 if self.match is None else self.match.jump_frame
+
+    @property
+    def cost(self) -> float:
+        return 0.0 if self.match is None else self.match.cost
+
+    @property
+    def accepted(self) -> bool:
+        return True if self.match is None else self.match.accepted
+
+    @property
+    def scope(self) -> str:
+        return "none" if self.match is None else self.match.scope
 
 
 @dataclass(frozen=True)
@@ -236,7 +261,7 @@ def react(
     _check_impact(motion, impact)
     ragdoll = ragdoll or character_ragdoll(motion, settings.profile)
     workspace = workspace or Workspace(ragdoll)
-    casting = casting or Casting.between(source or motion, ragdoll.roles, library)
+    casting = casting or Casting.between(source or motion, ragdoll.rig, library)
     bc, before = _bc(motion, impact, ragdoll, settings, workspace)
     frame_c = int(bc.frames[-1])
     clock.lap("bc")
@@ -258,7 +283,7 @@ def react(
             round((match.jump_frame + library.window - 1) / library.fps * motion.fps), clip_raw.num_frames - 1
         )
         at_c = before.slice(frame_c, frame_c + 1)
-        placement = _alignment(at_c, clip_raw.slice(frame_e, frame_e + 1), ragdoll.roles)
+        placement = _alignment(at_c, clip_raw.slice(frame_e, frame_e + 1), ragdoll.rig)
         clip = place(clip_raw, *placement)
     steps = max(1, round(settings.transition * motion.fps))
     clip_ef = _frames(clip, frame_e, steps + 1)  # E..F; a clip that ends sooner holds its last pose
@@ -271,18 +296,18 @@ def react(
         out = _join(before.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, clip.num_frames))
         clock.lap("blend")
         chained, chain_fade, end_frame = None, [], min(frame_c + steps, out.num_frames - 1)
-        out, resumed_at, resume_fade = _resume_or_hold(out, source or motion, 0, 0, ragdoll.roles)
+        out, resumed_at, resume_fade = _resume_or_hold(out, source or motion, 0, 0, ragdoll.rig)
     else:
         stop = max(frame_e + steps + 1, _still_from(library, match.clip_index, motion.fps))
         out = _join(before.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, min(stop, clip.num_frames)))
         clock.lap("blend")
-        out, chained, chain_fade = _chain(out, casting, match, ragdoll.roles, settings)
+        out, chained, chain_fade = _chain(out, casting, match, ragdoll.rig, settings)
         standing = chained is not None or not is_fall(match.reaction_class)
         window = max(2, round(library.window * motion.fps / library.fps)) if settings.resume and standing else 0
         # a stumble may hand back to the motion from F on; a get-up plays to its end first
         earliest = frame_c + steps if chained is None else out.num_frames - window
         out, resumed_at, resume_fade = _resume_or_hold(out, source or motion, int(np.ceil(impact.frame)), window,
-                                                       ragdoll.roles, earliest)  # fmt: skip
+                                                       ragdoll.rig, earliest)  # fmt: skip
         end_frame = resume_fade[0][1] - 1 if resume_fade else out.num_frames - 1
     # B's own pose stays; a held last pose (a fall with nothing chained) is held lifted as it ends
     reacting = (
@@ -291,7 +316,7 @@ def react(
     )
     if settings.hold_feet:
         fades = [(frame_c, frame_c + steps + 1), *chain_fade, *resume_fade]
-        out = lift_onto_floor(hold_feet(out, ragdoll.roles, reacting, fades, casting.sole), reacting, casting.sole)
+        out = lift_onto_floor(hold_feet(out, ragdoll.rig, reacting, fades, casting.sole), reacting, casting.sole)
     ground_root = static_root(source or motion)
     if ground_root is not None:
         out = hold_root(out, *ground_root)
@@ -306,18 +331,13 @@ def react(
         if probabilities is not None
         else {},
         predicted=impact.reaction or (None if probabilities is None else CLASS_SLUGS[int(np.argmax(probabilities))]),
-        scope=match.scope if match is not None else "none",
-        reaction_class=match.reaction_class if match is not None else choice.kept_class,
-        clip=match.clip if match is not None else KEPT_CLIP,
-        jump_frame=match.jump_frame if match is not None else 0,
-        cost=match.cost if match is not None else 0.0,
-        accepted=match.accepted if match is not None else True,
+        match=match,
         placement=placement,
         chained=chained,
         resumed_at=resumed_at,
         going_down=falling is not None,
         note=choice.note,
-        kept_motion=match is None,
+        kept_class=choice.kept_class,
         timings=clock.total(),
         motion=out,
     )
@@ -346,7 +366,7 @@ def bake_reactions(
         _check_impact(motion, impact)
     ragdoll = character_ragdoll(motion, settings.profile)
     workspace = Workspace(ragdoll)
-    casting = Casting.between(motion, ragdoll.roles, library)
+    casting = Casting.between(motion, ragdoll.rig, library)
     current = motion
     reactions: list[Reaction] = []
     for k, impact in enumerate(ordered):
@@ -378,7 +398,7 @@ def impact_query(
     real queries, for benchmarks and tools that study the search."""
     settings = settings or ReactionSettings()
     _check_impact(motion, impact)
-    casting = casting or Casting.between(motion, ragdoll.roles, library)
+    casting = casting or Casting.between(motion, ragdoll.rig, library)
     bc, before = _bc(motion, impact, ragdoll, settings, workspace)
     return _query_ending_at(before, int(bc.frames[-1]), casting, impact), bc
 
@@ -518,7 +538,7 @@ def _going_down(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact,
     stood up."""
     if not any(is_fall(slug) for slug in library.class_ranges):
         return None
-    body = Body.of(ragdoll.skeleton, ragdoll.roles)
+    body = Body.of(ragdoll.rig)
     on_floor = np.delete(bc.contacts[-1], foot_bodies(ragdoll)).any()
     low = bc.com[-1][2] - bc.floor < COLLAPSE_HEIGHT * body.leg_length
     played_down = low and _played_down(motion, int(bc.frames[-1]), body, bc.floor)
@@ -546,7 +566,7 @@ def _judge(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact, *, g
 
 
 def _chain(
-    out: Motion, casting: Casting, match: Match, roles: dict[str, str], settings: ReactionSettings
+    out: Motion, casting: Casting, match: Match, rig: Rig, settings: ReactionSettings
 ) -> tuple[Motion, str | None, list[tuple[int, int]]]:
     """The clip's `next` (a get-up) placed where the reaction ends and faded in; its name and the
     fade's frames [a, b) (none without a get-up)."""
@@ -555,7 +575,7 @@ def _chain(
         return out, None, []
     fps = out.fps
     follow = casting.clip(name, fps)
-    yaw, offset = _alignment(out.slice(out.num_frames - 1, out.num_frames), follow.slice(0, 1), roles)
+    yaw, offset = _alignment(out.slice(out.num_frames - 1, out.num_frames), follow.slice(0, 1), rig)
     follow = place(follow, yaw, offset)
     overlap = max(1, min(round(settings.chain_blend * fps), follow.num_frames - 1, out.num_frames - 1))
     tail = out.slice(out.num_frames - 1, out.num_frames)
@@ -574,7 +594,7 @@ def _still_from(library: Library, clip_index: int, fps: float) -> int:
 
 
 def _resume_or_hold(
-    out: Motion, source: Motion, first: int, window: int, roles: dict[str, str], earliest: int | None = None
+    out: Motion, source: Motion, first: int, window: int, rig: Rig, earliest: int | None = None
 ) -> tuple[Motion, int | None, list[tuple[int, int]]]:
     """Resume the source over a `window`-frame fade (0: do not resume, as after a fall with nothing
     chained) that starts at a frame from `earliest` on (default: the last `window` frames of `out`;
@@ -587,7 +607,7 @@ def _resume_or_hold(
     earliest = out.num_frames - window if earliest is None else max(0, min(earliest, out.num_frames - window))
     resumed_at, fade = None, []
     if window and min(source.num_frames, out.num_frames + round(source.fps)) - first > window:
-        out, resumed_at, start = _resume(out, source, first, window, roles, earliest)
+        out, resumed_at, start = _resume(out, source, first, window, rig, earliest)
         fade = [(start, start + window)]
     missing = source.num_frames - out.num_frames  # a bake never shortens the action
     if missing > 0:
@@ -596,9 +616,7 @@ def _resume_or_hold(
     return out, resumed_at, fade
 
 
-def _resume(
-    out: Motion, source: Motion, first: int, window: int, roles: dict[str, str], earliest: int
-) -> tuple[Motion, int, int]:
+def _resume(out: Motion, source: Motion, first: int, window: int, rig: Rig, earliest: int) -> tuple[Motion, int, int]:
     """The source's best re-entry window (Eq. 1, at source frames from `first` to a second past the
     fade's start) aligned with `out`'s `window` frames from the best fade start (from `earliest` to
     the last `window` frames), faded in over them (blend_travel) and played on from there. The fade
@@ -612,8 +630,8 @@ def _resume(
     stride = max(1, round(out.fps / RESUME_RATE))
     latest = min(out.num_frames - window, earliest + round(RESUME_SEARCH * out.fps))
     stop = min(source.num_frames, latest + round(source.fps))  # re-entries a second past the latest start
-    tails = frame_features(out.slice(earliest, latest + window), roles).rows(slice(None, None, stride))
-    candidates = frame_features(source.slice(first, stop), roles).rows(slice(None, None, stride))
+    tails = frame_features(out.slice(earliest, latest + window), rig).rows(slice(None, None, stride))
+    candidates = frame_features(source.slice(first, stop), rig).rows(slice(None, None, stride))
     span = max(2, round(window / stride))
     wp, wq = joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS)
     windows = Windows.of(candidates, np.arange(max(0, candidates.num_frames - span + 1)), span)
@@ -633,9 +651,9 @@ def _resume(
         tried.append((float(costs[j]) + wait, start, first + j * stride))
     _, begin, entry = min(tried)  # on an exact tie, the earliest start and re-entry
     tail = out.slice(begin, begin + window)
-    yaw, offset = _alignment(tail.slice(0, 1), source.slice(entry, entry + 1), roles)
+    yaw, offset = _alignment(tail.slice(0, 1), source.slice(entry, entry + 1), rig)
     resumed = place(source.slice(entry, source.num_frames), yaw, offset)
-    pelvis = out.skeleton.index(roles["pelvis"])
+    pelvis = rig.joint("pelvis")
     faded, carried = blend_travel(tail, resumed.slice(0, window), fade_weights(window), pelvis)
     rest = place(resumed.slice(window, resumed.num_frames), 0.0, carried)
     return _join(out.slice(0, begin), faded, rest), entry, begin
@@ -645,10 +663,10 @@ def _resume(
 # Helpers
 
 
-def _alignment(anchor: Motion, moving: Motion, roles: dict[str, str]) -> tuple[float, tuple[float, float]]:
+def _alignment(anchor: Motion, moving: Motion, rig: Rig) -> tuple[float, tuple[float, float]]:
     """(yaw, offset) that put the first frame of `moving` on the first frame of `anchor`: same
     pelvis ground point and heading (window.py's heading frame)."""
-    a, m = frame_features(anchor.slice(0, 1), roles), frame_features(moving.slice(0, 1), roles)
+    a, m = frame_features(anchor.slice(0, 1), rig), frame_features(moving.slice(0, 1), rig)
     yaw = float(a.heading[0] - m.heading[0])
     offset = a.ground[0] - yaw_rotate(yaw, np.append(m.ground[0], 0.0))[:2]
     return yaw, (float(offset[0]), float(offset[1]))

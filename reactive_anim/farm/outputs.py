@@ -42,7 +42,8 @@ def settings_digest(library: Path, model: Path) -> str:
     import numpy
     import onnxruntime
 
-    from ..core.search.library import LibrarySettings, cache_key, read_chain_entries, read_manifest
+    from ..core.search.library import LibrarySettings, cache_key
+    from ..core.search.manifest import read_chain_entries, read_manifest
 
     parts = {
         "library": cache_key(read_manifest(library), LibrarySettings(), {}, read_chain_entries(library)),

@@ -12,6 +12,7 @@ from reactive_anim.blender.bake import bake
 from reactive_anim.blender.character import action_io, bvh_import
 from reactive_anim.blender.impacts import impacts
 from reactive_anim.core.model import quat
+from reactive_anim.core.model.rig import Rig
 from reactive_anim.core.model.roles import RIG_PRESETS, assign_roles
 from reactive_anim.core.model.skeleton import Skeleton
 from reactive_anim.core.transition import retarget
@@ -59,7 +60,9 @@ def test_reactions_bake_onto_shared_skeletons_with_the_feet_on_the_floor(empty_s
     # character's own floor: no foot goes through it, and a planted foot stands on it. (Where the
     # clip's feet are planted, core/test_retarget.py checks them frame by frame.)
     reaction = result.reactions[0]
-    sole = _sole(before, roles)  # the take's floor, a calibration frame 0 left out (139_16 opens on one)
+    sole = _sole(
+        before, Rig(before.skeleton, roles)
+    )  # the take's floor, a calibration frame 0 left out (139_16 opens on one)
     lowest = _lowest_feet(reacted, roles)[
         reaction.frame_f : max(reaction.frame_f + 1, (reaction.frame_f + reaction.end_frame) // 2)
     ]
@@ -96,7 +99,7 @@ def _a_pose_mixamo_rig(scene: bpy.types.Scene) -> tuple[bpy.types.Object, Skelet
 def test_an_a_pose_rig_with_rolled_bones_plays_the_clips_role_bones_as_the_source(empty_scene):
     rig, _ = _a_pose_mixamo_rig(empty_scene)
     target = action_io.armature_skeleton(rig)  # the rig as the core reads it from Blender
-    mapping = retarget.retarget_map(WALK.skeleton, target)
+    mapping = retarget.retarget_map(Rig.of(WALK.skeleton), Rig.of(target))
     assert mapping.scale == pytest.approx(1.0, abs=1e-6) and len(mapping.roles) == 22
     motion = retarget.retarget(WALK, mapping)
     action = action_io.write_motion(rig, motion, "hero_walk", frame_start=1)

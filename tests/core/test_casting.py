@@ -11,6 +11,7 @@ import pytest
 from reactive_anim.core.classify.classifier import load_classifier
 from reactive_anim.core.model import bvh, quat
 from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.model.rig import Rig
 from reactive_anim.core.model.roles import assign_roles
 from reactive_anim.core.model.skeleton import Motion
 from reactive_anim.core.react import ReactionSettings, character_ragdoll, react
@@ -46,11 +47,11 @@ def _renamed():
     names = [f"Bone{k:02d}" for k in range(WALK.skeleton.num_joints)]
     roles = {role: names[WALK.skeleton.index(n)] for role, n in assign_roles(WALK.skeleton).items()}
     skeleton = replace(WALK.skeleton, names=names, roles=roles)
-    return retarget.retarget(WALK, retarget.retarget_map(WALK.skeleton, skeleton)), roles
+    return retarget.retarget(WALK, retarget.retarget_map(Rig.of(WALK.skeleton), Rig.of(skeleton))), roles
 
 
 def test_on_the_librarys_skeleton_nothing_is_converted(library):
-    casting = Casting.between(WALK, assign_roles(WALK.skeleton), library)
+    casting = Casting.between(WALK, Rig.of(WALK.skeleton), library)
     assert casting.same_skeleton
     assert casting.clip("step_back_1.bvh", 60.0) is library.clip_motion("step_back_1.bvh", 60.0)
 
@@ -84,7 +85,7 @@ def test_the_same_push_on_a_renamed_skeleton_picks_the_same_class_clip_and_frame
 
 def test_a_t_pose_character_reacts_with_a_clip_recorded_arms_down(library, classifier):
     target = t_pose_variant()
-    mapping = retarget.retarget_map(WALK.skeleton, target)
+    mapping = retarget.retarget_map(Rig.of(WALK.skeleton), Rig.of(target))
     character = retarget.retarget(WALK, mapping)
     reaction = react(character, Impact(60, "chest", (0.0, -1.0, 0.0), 120.0), library, classifier)
 
@@ -111,9 +112,9 @@ def test_real_walks_of_other_skeletons_find_windows_as_close_as_the_sample_walk(
     library's as the sample walk's (which the library's own generator made)."""
     walk = bvh.read_bvh(require_mocap(relative))
     roles = assign_roles(walk.skeleton)
-    casting = Casting.between(walk, roles, library)
+    casting = Casting.between(walk, Rig(walk.skeleton, roles), library)
     assert not casting.same_skeleton
-    sample = Casting.between(WALK, assign_roles(WALK.skeleton), library)
+    sample = Casting.between(WALK, Rig.of(WALK.skeleton), library)
 
     def median_cost(cast: Casting, motion) -> float:
         starts = np.linspace(motion.fps, motion.num_frames - motion.fps, 6)
@@ -130,8 +131,8 @@ def test_the_librarys_joint_names_on_other_proportions_are_retargeted(library):
     for name in ("shin.L", "shin.R", "foot.L", "foot.R"):
         offsets[WALK.skeleton.index(name)] *= 1.15
     taller = replace(WALK.skeleton, offsets=offsets, roles={})
-    character = retarget.retarget(WALK, retarget.retarget_map(WALK.skeleton, taller))
-    casting = Casting.between(character, assign_roles(taller), library)
+    character = retarget.retarget(WALK, retarget.retarget_map(Rig.of(WALK.skeleton), Rig.of(taller)))
+    casting = Casting.between(character, Rig.of(taller), library)
     assert not casting.same_skeleton
     clip = casting.clip("step_back_1.bvh", 60.0)
     source = library.clip_motion("step_back_1.bvh", 60.0)
@@ -147,8 +148,8 @@ def test_a_clips_role_overrides_reach_the_bake(tmp_path):
     library = load_library(tmp_path, cache_dir=tmp_path / "cache")
     assert library.clip_motion(library.clips[0].name, 60.0).skeleton.roles["chest"] == "spine.001"
     renamed, roles = _renamed()
-    casting = Casting.between(renamed, roles, library)
-    assert casting._roles(casting.reference.skeleton)["chest"] == "spine.001"
+    casting = Casting.between(renamed, Rig(renamed.skeleton, roles), library)
+    assert casting._rig(casting.reference.skeleton).roles["chest"] == "spine.001"
 
 
 def _opening_on(drop: float) -> Motion:
@@ -162,9 +163,9 @@ def _opening_on(drop: float) -> Motion:
 def test_a_calibration_pose_on_frame_0_is_not_the_characters_floor(library):
     """A first frame left at 48 m/s (0.8 m in a frame) is no part of the take: the floor the cast
     clips stand on is the walk's. One left at a walking pace still counts (5 cm lower: 3 m/s)."""
-    walk = Casting.between(WALK, assign_roles(WALK.skeleton), library).sole
-    calibrated = Casting.between(_opening_on(0.8), assign_roles(WALK.skeleton), library).sole
-    stepped = Casting.between(_opening_on(0.05), assign_roles(WALK.skeleton), library).sole
+    walk = Casting.between(WALK, Rig.of(WALK.skeleton), library).sole
+    calibrated = Casting.between(_opening_on(0.8), Rig.of(WALK.skeleton), library).sole
+    stepped = Casting.between(_opening_on(0.05), Rig.of(WALK.skeleton), library).sole
     assert calibrated == walk
     assert stepped < walk - 0.04
 

@@ -30,6 +30,7 @@ from reactive_anim.core.classify.features import (
 from reactive_anim.core.model import bvh, quat
 from reactive_anim.core.model.errors import SkeletonError
 from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.model.rig import Rig
 from reactive_anim.core.model.skeleton import Motion
 from reactive_anim.core.physics.ragdoll import build_ragdoll
 from reactive_anim.core.physics.simulate import simulate_impact
@@ -216,4 +217,4 @@ def test_a_skeleton_without_the_roles_is_refused(clips):
     roles = dict(reader.ragdoll.roles)
     del roles["chest"]
     with pytest.raises(SkeletonError, match="chest"):
-        Body.of(motion.skeleton, roles)
+        Body.of(Rig(motion.skeleton, roles))

@@ -22,18 +22,19 @@ import pytest
 from reactive_anim.core.classify.classifier import load_classifier
 from reactive_anim.core.model import bvh, quat
 from reactive_anim.core.model.impact import Impact
-from reactive_anim.core.model.roles import assign_roles
+from reactive_anim.core.model.rig import Rig
 from reactive_anim.core.model.skeleton import Motion
 from reactive_anim.core.react import ReactionSettings, character_ragdoll, react
 from reactive_anim.core.search.library import load_library
 from reactive_anim.core.transition.footing import CATCH_UP_FINISH, LIFT_EASE, MAX_OFFSET, hold_feet, lift_onto_floor
-from reactive_anim.core.transition.retarget import foot_points, leg_length, lowest_foot_point
+from reactive_anim.core.transition.retarget import foot_points, lowest_foot_point
 from tests.support.mocap import REPO
 from tools.devkit.poses import ground_axes
 
 IDLE = bvh.read_bvh(REPO / "sample_clips" / "idle.bvh")
 WALK = bvh.read_bvh(REPO / "sample_clips" / "walk.bvh")
-ROLES = assign_roles(IDLE.skeleton)
+RIG = Rig.of(IDLE.skeleton)
+ROLES = RIG.roles
 START, FRAMES = 60, 30  # the drag: frames 60..89
 
 
@@ -77,7 +78,7 @@ def test_a_dragged_stance_keeps_its_footprints_to_the_end():
     the motion (no slide when the hold would end). Frames before the range are the input's, bit
     for bit."""
     moved = dragged(0.09)
-    held = hold_feet(moved, ROLES, (START, START + FRAMES), [(START, START + FRAMES)], sole(moved))
+    held = hold_feet(moved, RIG, (START, START + FRAMES), [(START, START + FRAMES)], sole(moved))
     for side in "lr":
         before, after = contact_points(moved, side), contact_points(held, side)
         assert np.linalg.norm(before[-1, :2] - before[START - 1, :2]) > 0.085
@@ -89,7 +90,7 @@ def test_a_dragged_stance_keeps_its_footprints_to_the_end():
 def test_slides_outside_the_fades_are_the_motions_own():
     """The same drag before the fades (a clip's own motion) is not taken back: the feet go along."""
     moved = dragged(0.09)
-    held = hold_feet(moved, ROLES, (START, START + FRAMES), [(START + FRAMES, START + FRAMES + 5)], sole(moved))
+    held = hold_feet(moved, RIG, (START, START + FRAMES), [(START + FRAMES, START + FRAMES + 5)], sole(moved))
     assert np.array_equal(held.local_rot[: START + FRAMES], moved.local_rot[: START + FRAMES])
     for side in "lr":
         travel = contact_points(held, side)[-1, :2] - contact_points(held, side)[START - 1, :2]
@@ -102,7 +103,7 @@ def test_a_walkers_hold_is_let_go_in_the_air_and_the_walk_after_is_untouched():
     drag = np.zeros_like(WALK.root_pos)
     drag[:, 0] = np.clip(np.arange(WALK.num_frames) - START, 0, FRAMES) * 0.09 / FRAMES
     moved = replace(WALK, root_pos=WALK.root_pos + drag)
-    held = hold_feet(moved, ROLES, (START, START + FRAMES), [(START, START + FRAMES)], sole(moved))
+    held = hold_feet(moved, RIG, (START, START + FRAMES), [(START, START + FRAMES)], sole(moved))
     changed = np.flatnonzero(np.abs(held.local_rot - moved.local_rot).max(axis=(1, 2)) > 0.0)
     assert changed.size and changed[0] >= START and changed[-1] < WALK.num_frames - 30
     after = changed[-1] + 1
@@ -115,9 +116,9 @@ def test_a_walkers_hold_is_let_go_in_the_air_and_the_walk_after_is_untouched():
 def test_a_drag_beyond_the_hold_slides_the_feet_by_the_rest():
     """Dragged 15 cm further than the hold, the feet are held back by at most MAX_OFFSET leg lengths
     and slide the rest."""
-    most = MAX_OFFSET * leg_length(IDLE.skeleton, ROLES)
+    most = MAX_OFFSET * RIG.leg_length
     moved = dragged(most + 0.15)
-    held = hold_feet(moved, ROLES, (START, START + FRAMES), [(START, START + FRAMES)], sole(moved))
+    held = hold_feet(moved, RIG, (START, START + FRAMES), [(START, START + FRAMES)], sole(moved))
     for side in "lr":
         points = contact_points(held, side)
         travel = np.linalg.norm(points[START + FRAMES - 1, :2] - points[START - 1, :2])
@@ -177,7 +178,7 @@ def test_a_hand_under_the_floor_is_lifted_onto_it_keeping_its_turn():
     pos, glob = sunk.global_transforms()
     rows = slice(START, START + FRAMES)
     assert pos[rows, wrists, 2].max() < floor  # the pose the test needs
-    held = hold_feet(sunk, ROLES, (START, START + FRAMES), [], floor)
+    held = hold_feet(sunk, RIG, (START, START + FRAMES), [], floor)
     new_pos, new_glob = held.global_transforms()
     assert min(_lowest_of_hand(held, s)[rows].min() for s in "lr") > floor - 1e-6
     assert np.allclose(new_pos[rows][:, wrists, :2], pos[rows][:, wrists, :2], atol=1e-6)  # lifted straight up
@@ -198,7 +199,7 @@ def test_a_hand_the_motion_has_under_the_floor_at_the_hit_keeps_that_depth():
     from. The hands are left as they are where no deeper than there, and lifted to that depth where
     the idle's sway takes them deeper."""
     sunk = replace(IDLE, root_pos=IDLE.root_pos - np.array([0.0, 0.0, 0.85]) * _drag_rows()[:, None])
-    held = hold_feet(sunk, ROLES, (START + 5, START + FRAMES), [], sole(IDLE))
+    held = hold_feet(sunk, RIG, (START + 5, START + FRAMES), [], sole(IDLE))
     rows = slice(START + 4, START + FRAMES)
     raw = np.stack([_lowest_of_hand(sunk, s)[rows] for s in "lr"], axis=1)
     out = np.stack([_lowest_of_hand(held, s)[rows] for s in "lr"], axis=1)

@@ -21,10 +21,8 @@ from reactive_anim.core.search.library import (
     LibrarySettings,
     compile_clip,
     load_library,
-    read_chain_entries,
-    read_chains,
-    read_manifest,
 )
+from reactive_anim.core.search.manifest import read_chain_entries, read_chains, read_manifest
 from reactive_anim.core.search.search import search
 from reactive_anim.core.search.window import Query
 from tests.support.mocap import REPO

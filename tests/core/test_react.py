@@ -11,12 +11,11 @@ from reactive_anim.core.model import bvh, quat
 from reactive_anim.core.model.classes import CLASS_SLUGS, CLASSES
 from reactive_anim.core.model.errors import Cancelled, ImpactError, LibraryError
 from reactive_anim.core.model.impact import Impact
-from reactive_anim.core.model.roles import assign_roles
+from reactive_anim.core.model.rig import Rig
 from reactive_anim.core.react import STILL_KEPT, ReactionSettings, bake_reactions, character_ragdoll, react
 from reactive_anim.core.search.library import load_library
 from reactive_anim.core.transition.blend import place
 from reactive_anim.core.transition.footing import MAX_OFFSET
-from reactive_anim.core.transition.retarget import leg_length
 from tests.support.mocap import REPO, require_mocap
 from tools.devkit import believability as bl
 from tools.devkit.poses import ground_axes, leg_joints
@@ -60,7 +59,7 @@ def test_an_override_forces_the_class_and_f_is_the_clips_pose(walk, library, rag
     assert np.allclose(out.local_rot[r.frame_f, body], clip.local_rot[at_f, body], atol=1e-12)
     assert np.allclose(out.root_pos[r.frame_f], clip.root_pos[at_f], atol=1e-12)
     held = np.linalg.norm(out.global_positions()[r.frame_f] - clip.global_positions()[at_f], axis=-1)
-    assert held.max() <= MAX_OFFSET * leg_length(walk.skeleton, assign_roles(walk.skeleton)) + 1e-9
+    assert held.max() <= MAX_OFFSET * Rig.of(walk.skeleton).leg_length + 1e-9
     assert r.frame_b == B < r.frame_c < r.frame_f <= r.end_frame
 
 

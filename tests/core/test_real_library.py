@@ -106,7 +106,7 @@ def _fall_and_get_up(walk: Motion, ragdoll, library: Library):
     """A hard push from behind forced into the forward fall, which chains its get-up; the reaction,
     the get-up as the character plays it (cast onto the walk's skeleton) and the chain's seam (the
     fall's last frame, where the get-up starts fading in)."""
-    casting = Casting.between(walk, ragdoll.roles, library)
+    casting = Casting.between(walk, ragdoll.rig, library)
     push = Impact(B, ragdoll.roles["chest"], tuple(ground_axes(walk, B)[0]), 150.0, reaction="fall_forward_hands")
     reaction = react(walk, push, library, ragdoll=ragdoll, casting=casting)
     assert reaction.chained is not None

@@ -11,6 +11,7 @@ import pytest
 
 from reactive_anim.core.model import bvh, quat
 from reactive_anim.core.model.errors import SkeletonError
+from reactive_anim.core.model.rig import Rig
 from reactive_anim.core.model.roles import SIDES, assign_roles
 from reactive_anim.core.model.skeleton import Motion, Skeleton
 from reactive_anim.core.transition import retarget
@@ -53,8 +54,8 @@ def test_there_and_back_returns_the_original_within_2_degrees(label, target):
     the split of a bend among joints one skeleton lacks); the feet's leg IK then fits the legs to
     the other proportions, a few degrees that a round trip does not undo."""
     for fix_feet, limit in ((False, 2.0), (True, 5.0)):
-        there = retarget.retarget(WALK, retarget.retarget_map(WALK.skeleton, target), fix_feet=fix_feet)
-        back = retarget.retarget(there, retarget.retarget_map(target, WALK.skeleton), fix_feet=fix_feet)
+        there = retarget.retarget(WALK, retarget.retarget_map(Rig.of(WALK.skeleton), Rig.of(target)), fix_feet=fix_feet)
+        back = retarget.retarget(there, retarget.retarget_map(Rig.of(target), Rig.of(WALK.skeleton)), fix_feet=fix_feet)
         angles = _role_joint_angles(WALK, back)
         assert max(angles.values()) < limit, (fix_feet, {r: round(v, 2) for r, v in angles.items() if v > 0.5})
     np.testing.assert_allclose(back.root_pos[:, :2], WALK.root_pos[:, :2], atol=0.02)
@@ -62,7 +63,7 @@ def test_there_and_back_returns_the_original_within_2_degrees(label, target):
 
 @pytest.mark.parametrize(("label", "target"), TARGETS, ids=[t[0] for t in TARGETS])
 def test_role_bones_point_where_the_sources_do(label, target):
-    mapping = retarget.retarget_map(WALK.skeleton, target)
+    mapping = retarget.retarget_map(Rig.of(WALK.skeleton), Rig.of(target))
     out = retarget.retarget(WALK, mapping)
     angles = role_bone_angles(mapping, WALK.global_positions(), out.global_positions())
     assert max(angles.values()) < 5.0, {r: round(v, 1) for r, v in angles.items() if v > 2}
@@ -70,11 +71,11 @@ def test_role_bones_point_where_the_sources_do(label, target):
 
 @pytest.mark.parametrize(("label", "target"), TARGETS, ids=[t[0] for t in TARGETS])
 def test_planted_feet_neither_float_sink_nor_slide(label, target):
-    mapping = retarget.retarget_map(WALK.skeleton, target)
+    mapping = retarget.retarget_map(Rig.of(WALK.skeleton), Rig.of(target))
     out = retarget.retarget(WALK, mapping)
     src_pos, src_rot = WALK.global_transforms()
     pos, rot = out.global_transforms()
-    legs = retarget.leg_length(WALK.skeleton, assign_roles(WALK.skeleton))
+    legs = Rig.of(WALK.skeleton).leg_length
     for side in SIDES:
         k = mapping.roles.index(f"ankle_{side}")
         ankle_s, ankle_t = mapping.source_joints[k], mapping.target_joints[k]
@@ -94,11 +95,11 @@ def test_no_foot_goes_through_the_floor_off_its_plants(label, target, clip):
     """Other proportions swing a foot lower than the source's; where that takes it under the floor
     (a get-up's sliding feet on the CMU skeleton went 1.4 cm through), it is lifted onto it."""
     source = WALK if clip == "walk" else bvh.read_bvh(REPO / "sample_clips" / f"{clip}.bvh")
-    mapping = retarget.retarget_map(source.skeleton, target)
+    mapping = retarget.retarget_map(Rig.of(source.skeleton), Rig.of(target))
     out = retarget.retarget(source, mapping)
     src_pos, src_rot = source.global_transforms()
     pos, rot = out.global_transforms()
-    legs = retarget.leg_length(source.skeleton, assign_roles(source.skeleton))
+    legs = Rig.of(source.skeleton).leg_length
     feet = [mapping.roles.index(f"ankle_{side}") for side in SIDES]
     src_low = {k: retarget.lowest_foot_point(source.skeleton, mapping.source_joints[k], src_pos, src_rot) for k in feet}
     planted = [src_low[k][retarget.planted(source, mapping.source_joints[k], src_pos, legs)] for k in feet]
@@ -114,7 +115,7 @@ def test_a_rest_pose_plays_as_the_sources_rest_pose_not_the_targets():
     too: the rest alignment carries the pose, not the rest pose's rotations (identity)."""
     still = Motion(WALK.skeleton, 60.0, WALK.root_pos[:1], quat.identity((1, WALK.skeleton.num_joints)))
     target = t_pose_variant()
-    out = retarget.retarget(still, retarget.retarget_map(WALK.skeleton, target), fix_feet=False)
+    out = retarget.retarget(still, retarget.retarget_map(Rig.of(WALK.skeleton), Rig.of(target)), fix_feet=False)
     pos = out.global_positions()[0]
     for side in SIDES:
         upper, lower = (target.index(f"{part}.{side.upper()}") for part in ("upper_arm", "forearm"))
@@ -124,7 +125,7 @@ def test_a_rest_pose_plays_as_the_sources_rest_pose_not_the_targets():
 
 def test_joints_without_a_role_keep_the_base_motion_or_the_rest_pose():
     target = t_pose_variant()
-    mapping = retarget.retarget_map(WALK.skeleton, target)
+    mapping = retarget.retarget_map(Rig.of(WALK.skeleton), Rig.of(target))
     turns = quat.from_axis_angle([1.0, 0, 0], np.linspace(0, 1, WALK.num_frames))[:, None]
     base_rot = np.concatenate([np.roll(WALK.local_rot, 5, axis=0), turns], axis=1)
     base = Motion(target, WALK.fps, WALK.root_pos, base_rot)
@@ -141,7 +142,7 @@ def test_joints_without_a_role_keep_the_base_motion_or_the_rest_pose():
 
 
 def test_a_motion_of_another_skeleton_is_refused():
-    mapping = retarget.retarget_map(WALK.skeleton, t_pose_variant())
+    mapping = retarget.retarget_map(Rig.of(WALK.skeleton), Rig.of(t_pose_variant()))
     renamed = replace(WALK, skeleton=replace(WALK.skeleton, names=[n + "_x" for n in WALK.skeleton.names]))
     with pytest.raises(SkeletonError, match="not the retarget map's source skeleton"):
         retarget.retarget(renamed, mapping)
@@ -171,7 +172,7 @@ def test_the_feet_ik_never_bends_a_knee_backwards(label, target):
     """A straight leg's bend plane is float noise: the IK must bend it forward, as a knee does."""
     sources = [WALK] + [bvh.read_bvh(p) for p in mocap_files("cmu/90_18.bvh")]  # legs straight in places
     for source in sources:
-        out = retarget.retarget(source, retarget.retarget_map(source.skeleton, target))
+        out = retarget.retarget(source, retarget.retarget_map(Rig.of(source.skeleton), Rig.of(target)))
         assert _backward_knee_degrees(out) <= max(2.0, _backward_knee_degrees(source) + 0.5), source.skeleton.names[0]
 
 
@@ -180,7 +181,7 @@ def test_an_end_site_at_zero_lines_up_as_its_bone():
     target = t_pose_variant()
     hand = target.index("hand.R")
     flat = replace(target, end_sites={**target.end_sites, hand: np.zeros(3)})
-    normal = retarget.retarget(WALK, retarget.retarget_map(WALK.skeleton, target), fix_feet=False)
-    zero = retarget.retarget(WALK, retarget.retarget_map(WALK.skeleton, flat), fix_feet=False)
+    normal = retarget.retarget(WALK, retarget.retarget_map(Rig.of(WALK.skeleton), Rig.of(target)), fix_feet=False)
+    zero = retarget.retarget(WALK, retarget.retarget_map(Rig.of(WALK.skeleton), Rig.of(flat)), fix_feet=False)
     turned = np.degrees(quat.angle_between(normal.global_rotations()[:, hand], zero.global_rotations()[:, hand]))
     assert turned.max() < 1.0, turned.max()  # the hand's end site runs along the forearm in this rig

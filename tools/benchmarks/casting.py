@@ -15,7 +15,7 @@ import numpy as np
 
 from reactive_anim.core.classify.classifier import load_classifier
 from reactive_anim.core.model import bvh
-from reactive_anim.core.model.roles import assign_roles
+from reactive_anim.core.model.rig import Rig
 from reactive_anim.core.model.skeleton import Motion
 from reactive_anim.core.react import react
 from reactive_anim.core.search.library import load_library
@@ -37,7 +37,7 @@ FRAMES = [60, 90, 120, 150, 180]
 def _characters() -> dict[str, Motion]:
     found = {"sample walk": WALK}
     found["sample walk on a T-pose variant"] = retarget.retarget(
-        WALK, retarget.retarget_map(WALK.skeleton, t_pose_variant())
+        WALK, retarget.retarget_map(Rig.of(WALK.skeleton), Rig.of(t_pose_variant()))
     )
     for label, path in WALKS.items():
         if path.is_file():
@@ -48,7 +48,7 @@ def _characters() -> dict[str, Motion]:
 
 
 def _role_named(motion: Motion, impacts: list) -> list:
-    roles = motion.skeleton.roles or assign_roles(motion.skeleton)
+    roles = Rig.of(motion.skeleton).roles
     return [type(i)(i.frame, roles[i.bone], i.direction, i.strength) for i in impacts]
 
 
@@ -67,7 +67,7 @@ def bench_casting() -> None:
             report("cast", "search cost, max", float(np.max(costs)), "", **context)
             if motion.skeleton.names == WALK.skeleton.names:
                 continue
-            mapping = retarget.retarget_map(WALK.skeleton, motion.skeleton)
+            mapping = retarget.retarget_map(Rig.of(WALK.skeleton), Rig.of(motion.skeleton))
             seconds, frames_done = [], 0
             for clip in library.clips:
                 source = library.clip_motion(clip.name, motion.fps)

@@ -41,7 +41,7 @@ from reactive_anim.core.physics.workspace import Workspace
 from reactive_anim.core.react import Reaction, ReactionClassifier, ReactionSettings, character_ragdoll, react
 from reactive_anim.core.search.library import Library, load_library
 from reactive_anim.core.transition.casting import Casting
-from reactive_anim.core.transition.retarget import joint_path
+from reactive_anim.core.transition.ik import joint_path
 from tools.devkit import believability as bl
 from tools.devkit.mocap import MOCAP, REPO, mocap_files
 from tools.devkit.poses import ground_axes
@@ -223,7 +223,7 @@ class Pushing:
     @classmethod
     def on(cls, real: Real, library: Library, classifier: ReactionClassifier | None) -> Pushing:
         ragdoll = character_ragdoll(real.motion)
-        casting = Casting.between(real.motion, ragdoll.roles, library)
+        casting = Casting.between(real.motion, ragdoll.rig, library)
         return cls(real, library, classifier, casting, ragdoll, Workspace(ragdoll))
 
     def impact(self, frame: int, bone: str, side: str, strength: float) -> Impact:

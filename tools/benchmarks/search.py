@@ -128,7 +128,7 @@ def pushes(clip: str, path: Path, library: Library, classifier) -> list[RealQuer
     motion = bvh.read_bvh(path)
     ragdoll = character_ragdoll(motion)
     workspace = Workspace(ragdoll)
-    casting = Casting.between(motion, ragdoll.roles, library)
+    casting = Casting.between(motion, ragdoll.rig, library)
     first, last = 0.1 * motion.num_frames, motion.num_frames - 1 - 0.3 * motion.fps
     out = []
     for k, frame in enumerate(np.linspace(first, last, PUSHES).round()):

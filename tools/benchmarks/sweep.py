@@ -24,6 +24,7 @@ from reactive_anim.core.classify.classifier import load_classifier
 from reactive_anim.core.model import bvh
 from reactive_anim.core.model.errors import ImpactError, ReactiveAnimError
 from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.model.rig import Rig
 from reactive_anim.core.model.skeleton import Motion
 from reactive_anim.core.react import Baked, bake_reactions, character_ragdoll
 from reactive_anim.core.search.library import load_library
@@ -111,7 +112,7 @@ def bench_sweep() -> None:
         impacts += len(baked.reactions)
         halved += refused
         fastest.append(fastest_away_from_hits(baked))
-        under.append(deepest_under_floor(baked, Casting.between(motion, roles, library).sole))
+        under.append(deepest_under_floor(baked, Casting.between(motion, Rig(motion.skeleton, roles), library).sole))
     context = {"files": len(files), "pushes_per_file": PUSHES, "seed": SEED}
     report(GROUP, "impacts baked", impacts, "impacts", **context)
     report(GROUP, "bakes failed", sum(errors.values()), "bakes", by_error=dict(errors), **context)

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from reactive_anim.core.model.roles import assign_roles
+from reactive_anim.core.model.rig import Rig
 from reactive_anim.core.model.skeleton import Motion, Skeleton
-from reactive_anim.core.transition.retarget import joint_path
+from reactive_anim.core.transition.ik import joint_path
 
 UP = np.array([0.0, 0.0, 1.0])
 
@@ -14,10 +14,9 @@ UP = np.array([0.0, 0.0, 1.0])
 def ground_axes(motion: Motion, frame: float, roles: dict[str, str] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(forward, left) horizontal unit vectors of the character at a frame: left along the hip line
     (left hip minus right hip, flattened), forward = left x up."""
-    roles = roles or motion.skeleton.roles or assign_roles(motion.skeleton)
+    rig = Rig.of(motion.skeleton, roles)
     pos = motion.global_positions()[round(frame)]
-    index = motion.skeleton.index
-    left = pos[index(roles["hip_l"])] - pos[index(roles["hip_r"])]
+    left = pos[rig.joint("hip_l")] - pos[rig.joint("hip_r")]
     left[2] = 0.0
     left /= np.linalg.norm(left)
     return np.cross(left, UP), left
@@ -35,6 +34,6 @@ def limb_joints(skeleton: Skeleton) -> list[int]:
 
 
 def _below(skeleton: Skeleton, role: str) -> list[int]:
-    roles = skeleton.roles or assign_roles(skeleton)
-    tops = {skeleton.index(roles[f"{role}_{s}"]) for s in "lr"}
+    rig = Rig.of(skeleton)
+    tops = {rig.joint(f"{role}_{s}") for s in "lr"}
     return [j for j in range(skeleton.num_joints) if tops & set(joint_path(skeleton, 0, j))]

@@ -35,9 +35,9 @@ What differs from the paper, with the reason:
     height     the centre of mass above the floor at C;
     xcom_cos, xcom_sin  the departure's direction from the facing: cosine and |sine| of its angle;
     down       1 where a body other than the feet touches the floor at C, else 0.
-  The last seven are the balance state the outcome rule (outcome.py) reads. Measured on 9,000
-  simulated pushes, a model given the departure and the reach but not the excess and the speed
-  along it scored 96.0 % instead of 97.3 %: the rule's thresholds lie on those two, and a net
+  The last seven are the balance state the outcome rule (outcome.py) reads. A model given the
+  departure and the reach but not the excess and the speed along it scored lower on simulated
+  pushes (docs/measurements.md): the rule's thresholds lie on those two, and a net
   learns a threshold on one input from far fewer samples than on a norm it must compute. The
   direction's cosine and |sine| are there for the same reason: the rule's forward / side / backward
   sectors (45 degrees either side of the facing axis) are thresholds on them, where on xcom_dx and
@@ -55,11 +55,11 @@ import numpy as np
 
 from ..model.arrays import AnyFloatArray, FloatArray
 from ..model.errors import SkeletonError
-from ..model.skeleton import Motion, Skeleton, forward_kinematics
+from ..model.rig import Rig
+from ..model.skeleton import Motion, forward_kinematics
 from ..physics.joints import mocap_qpos
 from ..physics.ragdoll import Ragdoll
 from ..physics.simulate import SimResult
-from ..transition.retarget import leg_length
 from . import capture
 from .capture import SoleGeometry, Support
 
@@ -115,12 +115,11 @@ class Body:
     leg_length: float
 
     @classmethod
-    def of(cls, skeleton: Skeleton, roles: dict[str, str]) -> Body:
-        missing = [r for r in TRACKED_ROLES + FRAME_ROLES + LEG_ROLES if r not in roles]
+    def of(cls, rig: Rig) -> Body:
+        missing = [r for r in TRACKED_ROLES + FRAME_ROLES + LEG_ROLES if r not in rig.roles]
         if missing:
             raise SkeletonError(f"the reaction features need joints for the roles: {', '.join(missing)}")
-        joints = {role: skeleton.index(name) for role, name in roles.items()}
-        return cls(joints=joints, leg_length=leg_length(skeleton, roles))
+        return cls(joints=dict(rig.joints), leg_length=rig.leg_length)
 
 
 def spine_frame(body: Body, positions: FloatArray) -> FloatArray:
@@ -240,7 +239,7 @@ class FeatureReader:
 
     def __init__(self, ragdoll: Ragdoll):
         self.ragdoll = ragdoll
-        self.body = Body.of(ragdoll.skeleton, ragdoll.roles)
+        self.body = Body.of(ragdoll.rig)
         self.soles = SoleGeometry(ragdoll)
         self._kept: dict[int, tuple[Motion, dict[int, FloatArray]]] = {}
 

@@ -1,8 +1,8 @@
 """Balance during the transition (CD): a capped root assist that keeps a tracked character up.
 
 The paper's CD is pure PD tracking (Eq. 2). Joint servos alone have no balance feedback: tracking
-a real walk, the ragdoll stays within bounds for about half a second before it drifts and falls
-(measured on the sample walk: median 0.55 s over 12 starts). Two remedies were open: balance
+a real walk, the ragdoll stays within bounds for well under a second before it drifts and falls
+(docs/measurements.md, "Balance during CD"). Two remedies were open: balance
 feedback through the ankles and hips from the capture point, or an assist at the root. We use the
 root assist, because it is the one that keeps the joint servos' meaning (they still track the
 mocap, Eq. 2 unchanged) and whose strength can be stated and capped:
@@ -16,7 +16,7 @@ mocap, Eq. 2 unchanged) and whose strength can be stated and capped:
   capsules; the stiffness keeps the lean that difference causes to about 3 degrees.
 - A torque about the vertical toward the target's heading, a spring-damper at `heading_frequency`
   Hz on the body's spin inertia (m (0.14 h)^2, about 1.2 kg m^2 for a 70 kg adult), same cap.
-  Without it a tracked walker turned up to 130 degrees within 2 s: the swing leg's and the arms'
+  Without it a tracked walker turned far off its heading within seconds: the swing leg's and the arms'
   reaction torques turn the body about its stance foot, which a person resists with the foot's
   free moment and by steering the next step, neither of which PD tracking does.
 - The assist fades out between `fade_start` and `fade_end` of tilt error, so a push that has
@@ -26,10 +26,9 @@ mocap, Eq. 2 unchanged) and whose strength can be stated and capped:
 The assist is computed every ASSIST_STEPS steps (1/150 s) and held in between: cheaper than every
 step, and at kd * dt / m = 0.2 the held damping is stable.
 
-Measured (tools/bench.py sim, 12 starts each, with the soles' torsional friction of ragdoll.py):
-the settings below keep the sample walk, the sample idle and two real walks up for at least 1.2 s
-(pure PD: 0.2-0.6 s), and a planted foot on the standing idle slides 1.8 cm at most in 2 s. A
-stronger tilt cap (0.5) kept one more start up longer but let the idle's feet slide 3 cm.
+The settings below were chosen with `tools/bench.py sim` (how long tracked walks and a standing
+idle stay up, how far a planted foot slides); the figures, and the stronger tilt cap that was
+tried, are in docs/measurements.md and docs/decisions.md.
 """
 
 from __future__ import annotations

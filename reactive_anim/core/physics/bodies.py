@@ -31,6 +31,7 @@ import numpy.typing as npt
 from ..model import quat
 from ..model.arrays import FloatArray, IndexArray
 from ..model.errors import SimulationError, SkeletonError
+from ..model.rig import Rig
 from ..model.roles import part_of, side_of
 from ..model.skeleton import Motion, Skeleton, forward_kinematics
 from .anatomy import BODY_ROLES, FLEX_TOWARD, TABLE1_MASSES, JointLimits
@@ -103,9 +104,9 @@ def _tips(skeleton: Skeleton, joints: list[int], pos: FloatArray, grot: FloatArr
     return np.array(pts)
 
 
-def body_layout(skeleton: Skeleton, roles: dict[str, str]) -> tuple[list[RagdollBody], IndexArray]:
+def body_layout(rig: Rig) -> tuple[list[RagdollBody], IndexArray]:
     """Bodies in parent-first order, and the body each skeleton joint belongs to."""
-    index = {role: skeleton.index(name) for role, name in roles.items()}
+    skeleton, index = rig.skeleton, rig.joints
     owner: dict[int, list[str]] = {}
     for role in BODY_ROLES:
         owner.setdefault(index[role], []).append(role)

@@ -76,7 +76,7 @@ def _mjcf(ragdoll_bodies: list[RagdollBody], geometry: Geometry, excludes: list[
             # A flat sole from under the heel to the toe tip: a capsule from the ankle to the toe
             # alone would stand on its tip and rock. Torsional friction (condim 4, 3 cm): a capsule
             # touches a plane at one or two points, about which it would spin freely, and a
-            # tracked walker turned up to 130 degrees within 2 s (balance.py).
+            # tracked walker turned far off its heading within seconds (balance.py).
             ball_z = pos[ball_joints[b.name[-1]], 2] - pos[b.joint, 2]
             flat = np.array([seg[0], seg[1], 0.0])
             heel = np.array([0.0, 0.0, ball_z]) - unit_vector(flat) * radii[k]

@@ -17,7 +17,8 @@ import numpy as np
 from ..model import quat
 from ..model.arrays import FloatArray, IndexArray
 from ..model.errors import SimulationError, SkeletonError
-from ..model.roles import REQUIRED_ROLES, assign_roles, part_of
+from ..model.rig import Rig
+from ..model.roles import REQUIRED_ROLES, part_of
 from ..model.skeleton import Motion, Skeleton, forward_kinematics
 from .anatomy import (
     GROUP_OF_PART,
@@ -93,8 +94,7 @@ class Ragdoll:
 
     model: mujoco.MjModel
     mjcf: str
-    skeleton: Skeleton
-    roles: dict[str, str]
+    rig: Rig
     profile: str
     limits: dict[str, tuple[HingeRange, HingeRange, HingeRange]]
     total_mass: float
@@ -109,6 +109,14 @@ class Ragdoll:
     @property
     def root(self) -> RagdollBody:
         return self.bodies[0]
+
+    @property
+    def skeleton(self) -> Skeleton:
+        return self.rig.skeleton
+
+    @property
+    def roles(self) -> dict[str, str]:
+        return self.rig.roles
 
     def body_for_bone(self, bone: str) -> RagdollBody:
         """The body a skeleton bone belongs to (a merged bone belongs to its ancestor's body)."""
@@ -140,13 +148,12 @@ def build_ragdoll(
     profile_name, limits = resolve_profile(profile)
     if not (np.isfinite(total_mass) and total_mass > 0):
         raise SimulationError(f"total mass must be a positive number of kg, got {total_mass!r}")
-    if roles is None:
-        roles = dict(skeleton.roles) if skeleton.roles else assign_roles(skeleton)
-    missing = [r for r in REQUIRED_ROLES if r not in roles]
+    rig = Rig.of(skeleton, roles)
+    missing = [r for r in REQUIRED_ROLES if r not in rig.roles]
     if missing:
         raise SkeletonError(f"the ragdoll needs joints for the roles: {', '.join(missing)}")
-    index = {role: skeleton.index(name) for role, name in roles.items()}
-    bodies, body_of_joint = body_layout(skeleton, roles)
+    index = rig.joints
+    bodies, body_of_joint = body_layout(rig)
     scale = total_mass / TABLE1_TOTAL_MASS
     bodies = [replace(b, mass=b.mass * scale) for b in bodies]
     ref = reference_pose(skeleton, index, reference, reference_frame)
@@ -171,8 +178,7 @@ def build_ragdoll(
     return Ragdoll(
         model=model,
         mjcf=text,
-        skeleton=skeleton,
-        roles=dict(roles),
+        rig=rig,
         profile=profile_name,
         limits=dict(limits),
         total_mass=float(total_mass),

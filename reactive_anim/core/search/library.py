@@ -43,7 +43,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import tomllib
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -56,12 +55,13 @@ from ..model import bvh
 from ..model.arrays import FloatArray, IndexArray
 from ..model.classes import CLASS_SLUGS
 from ..model.errors import BVHError, LibraryError, SkeletonError
+from ..model.rig import Rig
 from ..model.roles import assign_roles
 from ..model.skeleton import Motion, frame_times, resample
+from .manifest import ChainEntry, ClipEntry, entry_error, read_chain_entries, read_manifest
 from .search_index import SearchIndex, build_index
 from .window import FrameFeatures, frame_features
 
-MANIFEST_NAME = "library.toml"
 # Bump when the features or the cache layout change, so old caches are never read.
 # 2: each clip keeps its roles (a character on another skeleton needs them); 3: a calibration first
 # frame is left out of clips and chains, and the chains' frames are kept
@@ -88,27 +88,6 @@ class LibrarySettings:
     window: int = DEFAULT_WINDOW
     unit: str = "auto"
     up: str = "Y"
-
-
-@dataclass(frozen=True)
-class ClipEntry:
-    """One clip as the manifest gives it (before reading the file)."""
-
-    name: str  # the manifest's `file` value; names the clip in errors and matches
-    path: Path
-    reaction_class: str
-    frames: tuple[int, int] | None = None
-    next: str | None = None
-    roles: tuple[tuple[str, str], ...] = ()
-
-
-@dataclass(frozen=True)
-class ChainEntry:
-    """One chained clip (a get-up) as the manifest gives it: reached only through a clip's `next`."""
-
-    name: str  # the manifest's `file` value, as `next` names it
-    path: Path
-    frames: tuple[int, int] | None = None
 
 
 @dataclass
@@ -247,7 +226,7 @@ class Library:
         try:
             motion = bvh.read_bvh(path, unit=settings.unit, up=settings.up)
         except (BVHError, OSError) as exc:
-            raise _entry_error(name, f"cannot be read again for the bake: {exc}") from None
+            raise entry_error(name, f"cannot be read again for the bake: {exc}") from None
         if info is not None:
             duration = (info.num_frames - 1) / info.library_fps
             stop = min(motion.num_frames, info.source_start + int(np.floor(duration * motion.fps + 1e-6)) + 1)
@@ -256,7 +235,7 @@ class Library:
         else:  # a chain: the frames found when the library was compiled (a library assembled by hand: found now)
             frames = self.chain_frames.get(name) or used_frames(name, motion, None)
             if frames[1] > motion.num_frames:
-                raise _entry_error(name, f"has {motion.num_frames} frames now, fewer than the library's {frames}")
+                raise entry_error(name, f"has {motion.num_frames} frames now, fewer than the library's {frames}")
             motion = motion.slice(*frames)
         return motion if np.isclose(motion.fps, fps) else resample(motion, frame_times(motion, fps))
 
@@ -288,149 +267,6 @@ class Library:
 
 
 # ---------------------------------------------------------------------------------------------
-# The manifest
-
-
-def _entry_error(name: str, message: str) -> LibraryError:
-    return LibraryError(f"clip '{name}': {message}")
-
-
-def read_manifest(source: str | Path) -> list[ClipEntry]:
-    """Clip entries of a library: a library.toml (or a folder holding one), else class sub-folders."""
-    source = Path(source)
-    toml_path = source if source.suffix == ".toml" else source / MANIFEST_NAME
-    if toml_path.is_file():
-        return _read_toml(toml_path)
-    if not source.is_dir():
-        raise LibraryError(f"no reaction library at {source}: neither a folder nor a {MANIFEST_NAME}")
-    entries: list[ClipEntry] = []
-    for sub in sorted(p for p in source.iterdir() if p.is_dir()):
-        if sub.name.startswith("."):
-            continue
-        for path in sorted(sub.glob("*.bvh")):
-            name = f"{sub.name}/{path.name}"
-            if sub.name not in CLASS_SLUGS:
-                classes = ", ".join(CLASS_SLUGS)
-                raise _entry_error(name, f"folder '{sub.name}' is not a reaction class; classes are: {classes}")
-            entries.append(ClipEntry(name, path, sub.name))
-    if not entries:
-        raise LibraryError(f"no clips in {source}: write a {MANIFEST_NAME} or put BVH files in folders named by class")
-    return entries
-
-
-def _read_toml(toml_path: Path) -> list[ClipEntry]:
-    try:
-        data = tomllib.loads(toml_path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise LibraryError(f"{toml_path}: not a valid TOML file: {exc}") from None
-    clips = _toml_list(data.get("clip", []))
-    if clips is None or not clips:
-        raise LibraryError(f"{toml_path}: no [[clip]] tables")
-    entries: list[ClipEntry] = []
-    names: set[str] = set()
-    for k, item in enumerate(clips, 1):
-        table = _toml_table(item)
-        name = str(table.get("file", "")) if table is not None else ""
-        if table is None or not name:
-            raise LibraryError(f"{toml_path}: [[clip]] number {k} has no 'file'")
-        unknown = set(table) - {"file", "class", "frames", "next", "roles"}
-        if unknown:
-            raise _entry_error(name, f"unknown keys {', '.join(sorted(unknown))} in {toml_path}")
-        slug = table.get("class")
-        if not isinstance(slug, str) or slug not in CLASS_SLUGS:
-            raise _entry_error(name, f"unknown reaction class {slug!r}; classes are: {', '.join(CLASS_SLUGS)}")
-        frames = _frame_range(name, table.get("frames"))
-        if name in names:
-            raise _entry_error(name, f"listed twice in {toml_path}")
-        names.add(name)
-        path = Path(name) if Path(name).is_absolute() else toml_path.parent / name
-        given_roles = table.get("roles", {})
-        overrides = _toml_table(given_roles)
-        if overrides is None:
-            raise _entry_error(name, f"roles must be a table of role = joint name, got {given_roles!r}")
-        # Read as given: a `next` that names no clip (a non-string included) is refused below, a role
-        # whose value names no joint by assign_roles when the clip is compiled.
-        next_clip = cast(str | None, table.get("next"))
-        roles = cast(dict[str, str], overrides)
-        entries.append(ClipEntry(name, path, slug, frames, next_clip, tuple(sorted(roles.items()))))
-    chains = _chain_entries(toml_path, data)
-    for entry in entries:
-        if entry.next is not None and entry.next not in names and entry.next not in chains:
-            raise _entry_error(
-                entry.name, f"next = {entry.next!r} is neither a [[clip]] nor a [[chain]] of this library"
-            )
-    return entries
-
-
-def _frame_range(name: str, frames: object) -> tuple[int, int] | None:
-    """An entry's `frames` ([start, end]: BVH frames, start inclusive, end exclusive) checked; errors
-    name the entry. (Past the file's end is checked when the file is read: used_frames.)"""
-    if frames is None:
-        return None
-    values = _toml_list(frames)
-    ints = [v for v in values if type(v) is int] if values is not None else []
-    if values is None or len(values) != 2 or len(ints) != 2:
-        raise _entry_error(name, f"frames must be [start, end] integers, got {frames!r}")
-    start, end = ints
-    if not 0 <= start < end:
-        raise _entry_error(name, f"frames [{start}, {end}] is not a range (need 0 <= start < end)")
-    return start, end
-
-
-def _toml_list(value: object) -> list[object] | None:
-    """A TOML array (its items of any TOML type), None for any other value."""
-    return cast(list[object], value) if isinstance(value, list) else None
-
-
-def _toml_table(value: object) -> dict[str, object] | None:
-    """A TOML table (its keys strings, its values of any TOML type), None for any other value."""
-    return cast(dict[str, object], value) if isinstance(value, dict) else None
-
-
-def _chain_entries(toml_path: Path, data: dict[str, object]) -> dict[str, ChainEntry]:
-    """The [[chain]] tables: clips played only after another (get-ups), name -> entry (an existing
-    file, its optional frames checked as a clip's are)."""
-    chains = _toml_list(data.get("chain", []))
-    if chains is None:
-        raise LibraryError(f"{toml_path}: 'chain' must be a list of [[chain]] tables")
-    out: dict[str, ChainEntry] = {}
-    for k, item in enumerate(chains, 1):
-        table = _toml_table(item)
-        name = str(table.get("file", "")) if table is not None else ""
-        if table is None or not name:
-            raise LibraryError(f"{toml_path}: [[chain]] number {k} has no 'file'")
-        unknown = set(table) - {"file", "frames"}
-        if unknown:
-            raise _entry_error(name, f"unknown keys {', '.join(sorted(unknown))} in [[chain]] of {toml_path}")
-        frames = _frame_range(name, table.get("frames"))
-        if name in out:
-            raise _entry_error(name, f"listed twice as a [[chain]] in {toml_path}")
-        path = Path(name) if Path(name).is_absolute() else toml_path.parent / name
-        if not path.is_file():
-            raise _entry_error(name, f"file not found: {path}")
-        out[name] = ChainEntry(name, path, frames)
-    return out
-
-
-def read_chain_entries(source: str | Path) -> list[ChainEntry]:
-    """The chained clips (get-ups) a library's manifest lists, in manifest order."""
-    source = Path(source)
-    toml_path = source if source.suffix == ".toml" else source / MANIFEST_NAME
-    if not toml_path.is_file():
-        return []
-    try:
-        data = tomllib.loads(toml_path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise LibraryError(f"{toml_path}: not a valid TOML file: {exc}") from None
-    return list(_chain_entries(toml_path, data).values())
-
-
-def read_chains(source: str | Path) -> dict[str, Path]:
-    """The chained clips (get-ups) a library's manifest lists, by the name `next` uses."""
-    return {c.name: c.path for c in read_chain_entries(source)}
-
-
-# ---------------------------------------------------------------------------------------------
 # Compile and cache
 
 
@@ -438,9 +274,9 @@ def _read_bytes(name: str, path: Path) -> bytes:
     try:
         return path.read_bytes()
     except FileNotFoundError:
-        raise _entry_error(name, f"file not found: {path}") from None
+        raise entry_error(name, f"file not found: {path}") from None
     except OSError as exc:
-        raise _entry_error(name, f"cannot read {path}: {exc}") from None
+        raise entry_error(name, f"cannot read {path}: {exc}") from None
 
 
 def _file_digest(name: str, path: Path, memo: FileMemo) -> str:
@@ -449,9 +285,9 @@ def _file_digest(name: str, path: Path, memo: FileMemo) -> str:
     try:
         st = path.stat()
     except FileNotFoundError:
-        raise _entry_error(name, f"file not found: {path}") from None
+        raise entry_error(name, f"file not found: {path}") from None
     except OSError as exc:
-        raise _entry_error(name, f"cannot read {path}: {exc}") from None
+        raise entry_error(name, f"cannot read {path}: {exc}") from None
     key = str(path.resolve())
     known = memo.get(key)
     if known is not None and known[0] == st.st_size and known[1] == st.st_mtime_ns:
@@ -499,7 +335,7 @@ def used_frames(name: str, motion: Motion, frames: tuple[int, int] | None) -> tu
     first frame (take_start) when they start at the file's first. Errors name the entry."""
     start, stop = frames or (0, motion.num_frames)
     if stop > motion.num_frames:
-        raise _entry_error(name, f"frames [{start}, {stop}] run past the file's {motion.num_frames} frames")
+        raise entry_error(name, f"frames [{start}, {stop}] run past the file's {motion.num_frames} frames")
     if start == 0 and stop > 1:
         start = take_start(motion.slice(0, 2).global_positions(), motion.fps)
     return start, stop
@@ -511,12 +347,12 @@ def compile_clip(entry: ClipEntry, settings: LibrarySettings) -> tuple[ClipInfo,
     try:
         role_map = assign_roles(motion.skeleton, dict(entry.roles) or None)
     except SkeletonError as exc:
-        raise _entry_error(entry.name, f"its skeleton lacks joint roles the search needs: {exc}") from None
+        raise entry_error(entry.name, f"its skeleton lacks joint roles the search needs: {exc}") from None
     start, stop = used_frames(entry.name, motion, entry.frames)
     motion = motion.slice(start, stop)
     times = frame_times(motion, settings.fps)
     if len(times) < settings.window:
-        raise _entry_error(
+        raise entry_error(
             entry.name,
             f"{len(times)} frames at {settings.fps:g} fps ({motion.num_frames} in the file at {motion.fps:g} fps) "
             f"is shorter than the {settings.window}-frame search window",
@@ -524,7 +360,7 @@ def compile_clip(entry: ClipEntry, settings: LibrarySettings) -> tuple[ClipInfo,
     source_fps = float(motion.fps)
     if not np.isclose(source_fps, settings.fps):
         motion = resample(motion, times)
-    features = frame_features(motion, role_map)
+    features = frame_features(motion, Rig(motion.skeleton, role_map))
     info = ClipInfo(
         entry.name, str(entry.path), entry.reaction_class, source_fps, start, features.num_frames, entry.next,
         roles=role_map,
@@ -542,9 +378,9 @@ def _read_entry(name: str, path: Path, settings: LibrarySettings) -> Motion:
     try:
         return bvh.read_bvh(path, unit=settings.unit, up=settings.up)
     except FileNotFoundError:
-        raise _entry_error(name, f"file not found: {path}") from None
+        raise entry_error(name, f"file not found: {path}") from None
     except BVHError as exc:
-        raise _entry_error(name, str(exc)) from None
+        raise entry_error(name, str(exc)) from None
 
 
 def compile_library(

@@ -31,7 +31,7 @@ import numpy as np
 
 from ..model.arrays import AnyFloatArray, FloatArray, IndexArray
 from ..model.errors import LibraryError
-from ..model.roles import assign_roles
+from ..model.rig import Rig
 from ..model.skeleton import Motion, resample
 
 # Table 2, per joint row: (position weight w_p, rotation weight w_theta); left and right alike.
@@ -103,29 +103,28 @@ def _ground3(ground: AnyFloatArray) -> FloatArray:
     return np.concatenate([ground, np.zeros(ground.shape[:-1] + (1,))], axis=-1)
 
 
-def rest_heading(motion: Motion, roles: dict[str, str]) -> float:
+def rest_heading(motion: Motion, rig: Rig) -> float:
     """Facing of the rest pose: perpendicular to the hip line, on the ground (radians about Z).
 
     Skeletons differ in which way their rest pose faces (CMU +Z in Y-up files, others -Y or +Y), so
     the pelvis twist alone would not compare across skeletons; adding this makes 0 mean "facing +X".
     """
-    sk = motion.skeleton
-    rest = sk.rest_positions()
-    left: FloatArray = rest[sk.index(roles["hip_l"])] - rest[sk.index(roles["hip_r"])]
+    rest = motion.skeleton.rest_positions()
+    left: FloatArray = rest[rig.joint("hip_l")] - rest[rig.joint("hip_r")]
     forward = np.cross(left, [0.0, 0.0, 1.0])
     if np.hypot(forward[0], forward[1]) < 1e-9:
         return 0.0
     return float(np.arctan2(forward[1], forward[0]))
 
 
-def frame_features(motion: Motion, roles: dict[str, str]) -> FrameFeatures:
-    """Eq. 1's per-frame features of a whole motion (see FrameFeatures), by forward kinematics."""
-    sk = motion.skeleton
-    joints = [sk.index(roles[role]) for role in SEARCH_ROLES]
-    pelvis = sk.index(roles["pelvis"])
+def frame_features(motion: Motion, rig: Rig) -> FrameFeatures:
+    """Eq. 1's per-frame features of a whole motion (see FrameFeatures), by forward kinematics; rig:
+    the motion's."""
+    joints = [rig.joint(role) for role in SEARCH_ROLES]
+    pelvis = rig.joint("pelvis")
     pos, rot = motion.global_transforms()
     q = rot[:, pelvis]
-    heading = 2.0 * np.arctan2(q[:, 3], q[:, 0]) + rest_heading(motion, roles)
+    heading = 2.0 * np.arctan2(q[:, 3], q[:, 0]) + rest_heading(motion, rig)
     heading = np.angle(np.exp(1j * heading))  # wrap to (-pi, pi]
     ground = pos[:, pelvis, :2].copy()
     pos_local = yaw_rotate(-heading[:, None], pos[:, joints] - _ground3(ground)[:, None])
@@ -165,14 +164,12 @@ class Query:
         return self.features.num_frames
 
 
-def query_from_motion(
-    motion: Motion, start_frame: float, window: int, fps: float, roles: dict[str, str] | None = None
-) -> Query:
+def query_from_motion(motion: Motion, start_frame: float, window: int, fps: float, rig: Rig | None = None) -> Query:
     """The query window starting at `start_frame` (the motion's frames): `window` frames at `fps`.
 
-    roles: the skeleton's role map; default `motion.skeleton.roles`, else found by roles.py.
+    rig: the motion's; default its skeleton's own roles, else found by name (Rig.of).
     """
-    roles = roles or motion.skeleton.roles or assign_roles(motion.skeleton)
+    rig = rig or Rig.of(motion.skeleton)
     times = start_frame / motion.fps + np.arange(window) / fps
     end = (motion.num_frames - 1) / motion.fps
     if start_frame < 0 or times[-1] > end + 1e-9:
@@ -180,7 +177,7 @@ def query_from_motion(
             f"the query window ({window} frames at {fps:g} fps from frame {start_frame:g}) runs past the "
             f"motion's {motion.num_frames} frames at {motion.fps:g} fps"
         )
-    return Query(frame_features(resample(motion, times), roles))
+    return Query(frame_features(resample(motion, times), rig))
 
 
 def window_costs(frames: FrameFeatures, starts: IndexArray, query: Query, wp: FloatArray, wq: FloatArray) -> FloatArray:

@@ -16,7 +16,8 @@ from functools import cached_property
 
 import numpy as np
 
-from ..model.roles import SIDES, assign_roles
+from ..model.rig import Rig
+from ..model.roles import SIDES
 from ..model.skeleton import Motion, Skeleton
 from ..search.library import Library, take_start
 from ..search.window import Query, query_from_motion
@@ -33,7 +34,7 @@ class Casting:
     the library's own skeleton, and everything else only when first needed."""
 
     character: Motion
-    roles: dict[str, str]
+    rig: Rig  # the character's
     library: Library
     reference: Motion  # the library's first clip: its skeleton is the one the search compares on
     # skeleton (_key) -> the pose it is lined up at
@@ -44,8 +45,8 @@ class Casting:
     _clips: dict[tuple[str, float], Motion] = field(default_factory=dict[tuple[str, float], Motion])
 
     @classmethod
-    def between(cls, character: Motion, roles: dict[str, str], library: Library) -> Casting:
-        return cls(character, roles, library, library.clip_motion(library.clips[0].name, library.fps))
+    def between(cls, character: Motion, rig: Rig, library: Library) -> Casting:
+        return cls(character, rig, library, library.clip_motion(library.clips[0].name, library.fps))
 
     @cached_property
     def same_skeleton(self) -> bool:
@@ -54,19 +55,17 @@ class Casting:
     @cached_property
     def sole(self) -> float:
         """How high the character's lowest foot point is on the floor, in its own motion."""
-        return _sole(self.character, self.roles)
+        return _sole(self.character, self.rig)
 
     def query(self, before: Motion, start: float) -> Query:
         """The library-rate window from `start` (before's frames), on the library's skeleton."""
         library = self.library
         if self.same_skeleton:
-            return query_from_motion(before, start, library.window, library.fps, self.roles)
+            return query_from_motion(before, start, library.window, library.fps, self.rig)
         first = int(np.floor(start))
         last = min(before.num_frames, int(np.ceil(start + (library.window - 1) * before.fps / library.fps)) + 2)
         moved = retarget(before.slice(first, last), self._map(self.character, self.reference), fix_feet=False)
-        return query_from_motion(
-            moved, start - first, library.window, library.fps, self._roles(self.reference.skeleton)
-        )
+        return query_from_motion(moved, start - first, library.window, library.fps, self._rig(self.reference.skeleton))
 
     def clip(self, name: str, fps: float) -> Motion:
         """A library clip at `fps`, played by the character (its feet held where the clip's are planted)."""
@@ -84,25 +83,24 @@ class Casting:
         key = (_key(source.skeleton), _key(target.skeleton))
         if key not in self._maps:
             poses = [self._pose(m) for m in (source, target)]
-            self._maps[key] = retarget_map(
-                source.skeleton, target.skeleton, self._roles(source.skeleton), self._roles(target.skeleton), *poses
-            )
+            self._maps[key] = retarget_map(self._rig(source.skeleton), self._rig(target.skeleton), *poses)
         return self._maps[key]
 
     def _pose(self, motion: Motion) -> Pose:
         key = _key(motion.skeleton)
         if key not in self._poses:
-            self._poses[key] = reference_pose(motion, self._roles(motion.skeleton))
+            self._poses[key] = reference_pose(motion, self._rig(motion.skeleton))
         return self._poses[key]
 
-    def _roles(self, skeleton: Skeleton) -> dict[str, str]:
-        """The character's roles as given; another skeleton's own, or found by name."""
+    def _rig(self, skeleton: Skeleton) -> Rig:
+        """The skeleton's rig: the character's roles on the character's skeleton (or one the same);
+        another skeleton's own roles, or found by name."""
         if same_skeleton(skeleton, self.character.skeleton):
-            return self.roles
-        return skeleton.roles or assign_roles(skeleton)
+            return Rig(skeleton, self.rig.roles)
+        return Rig.of(skeleton)
 
 
-def _sole(motion: Motion, roles: dict[str, str]) -> float:
+def _sole(motion: Motion, rig: Rig) -> float:
     """The lowest any foot of the motion gets (toes, end sites): where its floor is for its feet.
     A toe joint may sit centimetres over the real sole, and a file's floor anywhere. A first frame
     the take leaves faster than library.CALIBRATION_JUMP is a calibration pose, not the take, and is
@@ -110,7 +108,7 @@ def _sole(motion: Motion, roles: dict[str, str]) -> float:
     one with the feet 0.8 m under their floor, and every cast clip was held that far down."""
     pos, rot = motion.global_transforms()
     sk = motion.skeleton
-    lowest = np.minimum(*(lowest_foot_point(sk, sk.index(roles[f"ankle_{s}"]), pos, rot) for s in SIDES))
+    lowest = np.minimum(*(lowest_foot_point(sk, rig.joint(f"ankle_{s}"), pos, rot) for s in SIDES))
     return float(lowest[take_start(pos, motion.fps) :].min())
 
 

@@ -32,9 +32,11 @@ import numpy as np
 
 from ..model.arrays import BoolArray, FloatArray
 from ..model.floor import on_floor
+from ..model.rig import Rig
 from ..model.roles import SIDES
 from ..model.skeleton import Motion, Skeleton, root_child
-from .retarget import foot_points, joint_path, leg_length, local_rotations, lowest_foot_point, two_bone_ik
+from .ik import joint_path, two_bone_ik
+from .retarget import foot_points, local_rotations, lowest_foot_point
 
 LOWEST_SCALE = 0.003  # m: a foot point this much higher than its lowest counts 1/e as much for the slide
 SKIM_SPEED = 3.5  # m/s: a point faster than this does not stand, fully below ...
@@ -51,22 +53,19 @@ LIFT_EASE = 0.15  # s over which the body is lifted onto the floor before and af
 LIFT_MIN = 0.002  # m: less under the floor than this is left as it is
 
 
-def hold_feet(
-    motion: Motion, roles: dict[str, str], frames: tuple[int, int], fades: list[tuple[int, int]], floor: float
-) -> Motion:
+def hold_feet(motion: Motion, rig: Rig, frames: tuple[int, int], fades: list[tuple[int, int]], floor: float) -> Motion:
     """`motion` with its feet held (see the module docstring) from frame `first` on, frames =
     (first, last): slides taken back within `fades` (frame ranges [a, b)) and carried until let go,
     looking at least to `last` plus SETTLE; feet and hands lifted out of the floor over
-    first..last - 1. Frames before `first` and after the hold are untouched, bit for bit. roles:
-    role -> joint name (hip_l, knee_l, ankle_l, shoulder_l, elbow_l, wrist_l, ... pelvis, chest);
-    floor: the height of the character's lowest foot point in its own motion (casting.Casting.sole)."""
+    first..last - 1. Frames before `first` and after the hold are untouched, bit for bit. rig: the
+    motion's (hips, knees, ankles, shoulders, elbows, wrists, pelvis and chest are read); floor: the
+    height of the character's lowest foot point in its own motion (casting.Casting.sole)."""
     first, last = max(frames[0], 1), min(frames[1], motion.num_frames)
     if last - first < 2:
         return motion
-    joint = {role: motion.skeleton.index(name) for role, name in roles.items()}
     end = min(motion.num_frames, last + round(SETTLE * motion.fps))
     while True:
-        held = _hold(motion, roles, joint, (first, last, end), fades, floor)
+        held = _hold(motion, rig, (first, last, end), fades, floor)
         if held is None or end == motion.num_frames or not held[1]:
             break
         end = min(motion.num_frames, end + (end - first))  # a foot still held: look further
@@ -78,8 +77,7 @@ def hold_feet(
 
 def _hold(
     motion: Motion,
-    roles: dict[str, str],
-    joint: dict[str, int],
+    rig: Rig,
     frames: tuple[int, int, int],
     fades: list[tuple[int, int]],
     floor: float,
@@ -91,13 +89,14 @@ def _hold(
     span = motion.slice(first - 1, end)  # one frame before: where the first frame's foot came from
     skeleton = span.skeleton
     pos, glob = span.global_transforms()
+    joint = rig.joints
     left = pos[:, joint["hip_l"]] - pos[:, joint["hip_r"]]
     forward = np.cross(left, pos[:, joint["chest"]] - pos[:, joint["pelvis"]])
     points = {side: foot_points(skeleton, joint[f"ankle_{side}"], pos, glob) for side in SIDES}
     fading = np.zeros(len(pos) - 1, dtype=bool)  # per step into frame first + i
     for a, b in fades:
         fading[max(a - first, 0) : max(b - first, 0)] = True
-    leg = leg_length(skeleton, roles)
+    leg = rig.leg_length
     moved: list[tuple[list[int], BoolArray]] = []
     still_held = False
     reaction = np.zeros(len(pos), dtype=bool)  # the frames lifted out of the floor: first..last - 1

@@ -35,8 +35,10 @@ import numpy as np
 from ..model import quat
 from ..model.arrays import BoolArray, FloatArray, IndexArray
 from ..model.errors import SkeletonError
-from ..model.roles import SIDES, assign_roles
+from ..model.rig import Rig
+from ..model.roles import SIDES
 from ..model.skeleton import Motion, Skeleton, forward_kinematics
+from .ik import arc, joint_path, two_bone_ik, unit
 
 # Each role's bone: from the role joint toward the next role down the chain (None: no role below,
 # the bone points to the joint's own child or end site).
@@ -96,65 +98,61 @@ def motion_pose(motion: Motion, frame: int = 0) -> Pose:
     return pos[frame], rot[frame]
 
 
-def uprightness(skeleton: Skeleton, roles: dict[str, str], positions: FloatArray) -> FloatArray:
+def uprightness(rig: Rig, positions: FloatArray) -> FloatArray:
     """How much each pose (positions (..., J, 3)) is a standing body: the least of how straight up
     the neck is over the pelvis and how straight down each leg hangs (1: exactly; arms anywhere)."""
 
     def down(top: str, bottom: str) -> FloatArray:
-        v = positions[..., skeleton.index(roles[bottom]), :] - positions[..., skeleton.index(roles[top]), :]
+        v = positions[..., rig.joint(bottom), :] - positions[..., rig.joint(top), :]
         return -v[..., 2] / np.maximum(np.linalg.norm(v, axis=-1), 1e-12)
 
     legs = [down(f"hip_{s}", f"ankle_{s}") for s in SIDES]
     return np.minimum(-down("pelvis", "neck"), np.minimum(*legs))
 
 
-def standing_rest(skeleton: Skeleton, roles: dict[str, str]) -> bool:
+def standing_rest(rig: Rig) -> bool:
     """The rest pose is a standing body, so it can line up bones with another skeleton's."""
-    return bool(uprightness(skeleton, roles, skeleton.rest_positions()) > 0.9)
+    return bool(uprightness(rig, rig.skeleton.rest_positions()) > 0.9)
 
 
-def reference_pose(motion: Motion, roles: dict[str, str]) -> Pose:
-    """Where a motion's skeleton is lined up with another: its rest pose if that is a standing body
-    (exact between skeletons of one body), else its most upright frame (a clip may start lying)."""
-    if standing_rest(motion.skeleton, roles):
+def reference_pose(motion: Motion, rig: Rig) -> Pose:
+    """Where a motion's skeleton (the rig's) is lined up with another: its rest pose if that is a
+    standing body (exact between skeletons of one body), else its most upright frame (a clip may
+    start lying)."""
+    if standing_rest(rig):
         return rest_pose(motion.skeleton)
     pos, rot = motion.global_transforms()
-    best = int(np.argmax(uprightness(motion.skeleton, roles, pos)))
+    best = int(np.argmax(uprightness(rig, pos)))
     return pos[best], rot[best]
 
 
 def retarget_map(
-    source: Skeleton,
-    target: Skeleton,
-    source_roles: dict[str, str] | None = None,
-    target_roles: dict[str, str] | None = None,
-    source_pose: Pose | None = None,
-    target_pose: Pose | None = None,
+    source_rig: Rig, target_rig: Rig, source_pose: Pose | None = None, target_pose: Pose | None = None
 ) -> RetargetMap:
-    """The map from `source` to `target`; roles default to the skeletons' own (or found by name).
+    """The map from the source rig's skeleton to the target rig's.
 
     The poses (default: the rest poses) are where the two skeletons are lined up bone by bone: each
     must be a natural standing posture, since a bone's twist is read from it against the body's
     left-right line. A rest pose can be anything (a file may rest with its legs up and turn them
     down in every frame), so for a skeleton whose rest is not a standing body, pass a frame of its
     motion (motion_pose)."""
-    src_roles = _distinct(source, source_roles or source.roles or assign_roles(source))
-    tgt_roles = _distinct(target, target_roles or target.roles or assign_roles(target))
-    shared = [r for r in NEXT_ROLE if r in src_roles and r in tgt_roles]
-    shared.sort(key=lambda r: target.index(tgt_roles[r]))
+    src, tgt = _distinct(source_rig), _distinct(target_rig)
+    source, target = src.skeleton, tgt.skeleton
+    shared = [r for r in NEXT_ROLE if r in src.roles and r in tgt.roles]
+    shared.sort(key=lambda r: tgt.joint(r))
     src_pose, tgt_pose = source_pose or rest_pose(source), target_pose or rest_pose(target)
-    src_j = np.array([source.index(src_roles[r]) for r in shared])
-    tgt_j = np.array([target.index(tgt_roles[r]) for r in shared])
-    ends = [_next_role(r, shared, ((source, src_roles), (target, tgt_roles))) for r in shared]
-    src_child = np.array([_bone_end(source, src_roles, r, nxt) for r, nxt in zip(shared, ends, strict=True)])
-    tgt_child = np.array([_bone_end(target, tgt_roles, r, nxt) for r, nxt in zip(shared, ends, strict=True)])
+    src_j = np.array([src.joint(r) for r in shared])
+    tgt_j = np.array([tgt.joint(r) for r in shared])
+    ends = [_next_role(r, shared, (src, tgt)) for r in shared]
+    src_child = np.array([_bone_end(src, r, nxt) for r, nxt in zip(shared, ends, strict=True)])
+    tgt_child = np.array([_bone_end(tgt, r, nxt) for r, nxt in zip(shared, ends, strict=True)])
     align = np.empty((len(shared), 4))
     for k, role in enumerate(shared):
-        src_frame = _bone_frame(source, src_roles, src_pose, role, src_j[k], src_child[k])
-        tgt_frame = _bone_frame(target, tgt_roles, tgt_pose, role, tgt_j[k], tgt_child[k])
+        src_frame = _bone_frame(src, src_pose, role, src_j[k], src_child[k])
+        tgt_frame = _bone_frame(tgt, tgt_pose, role, tgt_j[k], tgt_child[k])
         turn = quat.from_matrix(src_frame @ tgt_frame.T)  # target's bone frame onto the source's
         align[k] = quat.mul(quat.mul(quat.conj(src_pose[1][src_j[k]]), turn), tgt_pose[1][tgt_j[k]])
-    scale = leg_length(target, tgt_roles) / leg_length(source, src_roles)
+    scale = tgt.leg_length / src.leg_length
     between = [_between(target, int(j), int(c), set(tgt_j.tolist())) for j, c in zip(tgt_j, tgt_child, strict=True)]
     return RetargetMap(source, target, shared, src_j, tgt_j, src_child, tgt_child, align, scale, between)
 
@@ -174,60 +172,48 @@ def _between(target: Skeleton, joint: int, child: int, role_joints: set[int]) ->
     return [(j, float(w)) for j, w in zip(chain[1:-1], share[:-1], strict=True) if j not in role_joints]
 
 
-def leg_length(skeleton: Skeleton, roles: dict[str, str]) -> float:
-    """Mean of the two legs' thigh + shin rest lengths, metres: the one length everything about
-    balance, steps and feet is scaled by (a skeleton whose legs are under 5 cm cannot stand, and
-    would divide by next to nothing)."""
-    pos = skeleton.rest_positions()
-    lengths: list[np.float64] = []
-    for s in SIDES:
-        hip, knee, ankle = (pos[skeleton.index(roles[f"{p}_{s}"])] for p in ("hip", "knee", "ankle"))
-        lengths.append(np.linalg.norm(knee - hip) + np.linalg.norm(ankle - knee))
-    length = float(np.mean(lengths))
-    if not length > 0.05:
-        raise SkeletonError(f"the legs are {length:.3f} m long (hip to ankle); the skeleton cannot stand")
-    return length
-
-
-def _distinct(skeleton: Skeleton, roles: dict[str, str]) -> dict[str, str]:
-    """The roles without a `back` that shares the waist's or chest's joint (roles.py allows it): one
+def _distinct(rig: Rig) -> Rig:
+    """The rig without a `back` that shares the waist's or chest's joint (roles.py allows it): one
     joint cannot take two roles' rotations, and its bone would have no length."""
+    roles = rig.roles
     shared = roles.get("back") in (roles.get("waist"), roles.get("chest"))
-    return {r: name for r, name in roles.items() if not (r == "back" and shared)}
+    return Rig(rig.skeleton, {r: name for r, name in roles.items() if not (r == "back" and shared)})
 
 
-def _next_role(role: str, shared: list[str], skeletons: tuple[tuple[Skeleton, dict[str, str]], ...]) -> str | None:
+def _next_role(role: str, shared: list[str], rigs: tuple[Rig, ...]) -> str | None:
     """The role a role's bone points to, the same on both skeletons (so the bone means the same):
     the next one down the chain that both have, away from this joint on both (a zero-length bone
     has no direction)."""
     nxt = NEXT_ROLE[role]
     while nxt is not None:
-        if nxt in shared and all(_distance(s, roles, role, nxt) > MIN_BONE for s, roles in skeletons):
+        if nxt in shared and all(_distance(rig, role, nxt) > MIN_BONE for rig in rigs):
             return nxt
         nxt = NEXT_ROLE[nxt]
     return None
 
 
-def _distance(skeleton: Skeleton, roles: dict[str, str], a: str, b: str) -> float:
-    rest = skeleton.rest_positions()
-    return float(np.linalg.norm(rest[skeleton.index(roles[a])] - rest[skeleton.index(roles[b])]))
+def _distance(rig: Rig, a: str, b: str) -> float:
+    rest = rig.skeleton.rest_positions()
+    return float(np.linalg.norm(rest[rig.joint(a)] - rest[rig.joint(b)]))
 
 
-def _bone_end(skeleton: Skeleton, roles: dict[str, str], role: str, nxt: str | None) -> int:
+def _bone_end(rig: Rig, role: str, nxt: str | None) -> int:
     """The joint a role's bone points to: the next role's, else the joint's first child away from it
     (-1: none)."""
     if nxt is not None:
-        return skeleton.index(roles[nxt])
+        return rig.joint(nxt)
+    skeleton = rig.skeleton
     rest = skeleton.rest_positions()
-    joint = skeleton.index(roles[role])
+    joint = rig.joint(role)
     children = [c for c in skeleton.children(joint) if np.linalg.norm(rest[c] - rest[joint]) > MIN_BONE]
     return children[0] if children else -1
 
 
-def _bone_frame(skeleton: Skeleton, roles: dict[str, str], pose: Pose, role: str, joint: int, child: int) -> FloatArray:
+def _bone_frame(rig: Rig, pose: Pose, role: str, joint: int, child: int) -> FloatArray:
     """A role bone's frame in a pose (columns): along the bone, then toward a body axis square to
     it in every natural pose: the body's left-right line for the spine, legs and feet (hips for the
     lower body, shoulders above), its front for the arms, which hang down or stretch sideways."""
+    skeleton = rig.skeleton
     pos, rot = pose
     if child >= 0:
         along = pos[child] - pos[joint]
@@ -235,8 +221,8 @@ def _bone_frame(skeleton: Skeleton, roles: dict[str, str], pose: Pose, role: str
         along = quat.rotate(rot[joint], skeleton.end_sites.get(int(joint), np.array([0.0, 0.0, 1.0])))
     if np.linalg.norm(along) < MIN_BONE and skeleton.parents[joint] >= 0:  # an End Site at 0 0 0: as its parent
         along = pos[joint] - pos[skeleton.parents[joint]]
-    left, right = (pos[skeleton.index(roles[r])] for r in _lateral_pair(role))
-    up = pos[skeleton.index(roles["neck"])] - pos[skeleton.index(roles["pelvis"])]
+    left, right = (pos[rig.joint(r)] for r in _lateral_pair(role))
+    up = pos[rig.joint("neck")] - pos[rig.joint("pelvis")]
     side = left - right
     toward = np.cross(side, up) if role.split("_")[0] in ARM_PARTS else side
     return _frame(along, toward, up)
@@ -256,25 +242,6 @@ def _frame(primary: FloatArray, secondary: FloatArray, fallback: FloatArray) -> 
             b = b / np.linalg.norm(b)
             return np.stack([a, b, np.cross(a, b)], axis=1)
     raise SkeletonError("a bone's frame has no direction")  # unreachable: the last two are orthogonal
-
-
-def arc(u: FloatArray, v: FloatArray) -> FloatArray:
-    """The smallest rotations taking unit vectors u onto v, (..., 4); opposite vectors turn about
-    any axis at right angles."""
-    dot = np.sum(u * v, axis=-1)
-    axis = np.cross(u, v)
-    q = np.concatenate([(1.0 + dot)[..., None], axis], axis=-1)
-    opposite = dot < -1.0 + 1e-9
-    if np.any(opposite):
-        other = np.where(np.abs(u[..., :1]) < 0.9, np.array([1.0, 0, 0]), np.array([0.0, 1, 0]))
-        perpendicular = np.cross(u, other)
-        perpendicular /= np.linalg.norm(perpendicular, axis=-1, keepdims=True)
-        q[opposite] = np.concatenate([np.zeros(perpendicular.shape[:-1] + (1,)), perpendicular], axis=-1)[opposite]
-    return quat.normalize(q)
-
-
-def _unit(v: FloatArray) -> FloatArray:
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
 
 
 def retarget(
@@ -325,7 +292,7 @@ def _wanted_globals(mapping: RetargetMap, src_pos: FloatArray, src_rot: FloatArr
         if end_s >= 0 and end_t >= 0 and mapping.roles[k] != "pelvis":  # the root body turns as the source's
             chain = [*rots, int(end_t)]
             now = sum(quat.rotate(rots[a], rest[b] - rest[a]) for a, b in itertools.pairwise(chain))
-            swing = arc(_unit(np.asarray(now)), _unit(src_pos[:, end_s] - src_pos[:, top_s]))
+            swing = arc(unit(np.asarray(now)), unit(src_pos[:, end_s] - src_pos[:, top_s]))
             rots = {j: quat.mul(swing, r) for j, r in rots.items()}
         wanted.update(rots)
     return wanted
@@ -392,7 +359,7 @@ def _plant_feet(
     target_roles = dict(zip(mapping.roles, mapping.target_joints, strict=True))
     if not all(f"{p}_{s}" in source_roles for p in ("hip", "knee", "ankle") for s in SIDES):
         return out
-    src_leg = leg_length(mapping.source, {r: mapping.source.names[j] for r, j in source_roles.items()})
+    src_leg = Rig(mapping.source, {r: mapping.source.names[j] for r, j in source_roles.items()}).leg_length
     feet = [(source_roles[f"ankle_{s}"], target_roles[f"ankle_{s}"], s) for s in SIDES]
     down = {s: planted(motion, ankle_s, source[0], src_leg) for ankle_s, _, s in feet}
     src_low = {s: lowest_foot_point(mapping.source, ankle_s, *source) for ankle_s, _, s in feet}
@@ -475,61 +442,3 @@ def _eased(down: BoolArray) -> FloatArray:
         weight[shift:] = np.maximum(weight[shift:], ramp * down[:-shift])
         weight[:-shift] = np.maximum(weight[:-shift], ramp * down[shift:])
     return weight
-
-
-def two_bone_ik(
-    skeleton: Skeleton,
-    pos: FloatArray,
-    glob: FloatArray,
-    joints: tuple[int, int, int],
-    goal: FloatArray,
-    weight: FloatArray,
-    left: FloatArray,
-    forward: FloatArray,
-) -> None:
-    """Turn hip and knee (global rotations, in place) so the ankle reaches toward `goal` by `weight`.
-    A knee bent forward keeps its plane; a straight one (whose plane is float noise, and may point
-    backwards) bends about the body's left-right line (`left`, per frame), its shin toward the back
-    (`forward` is the body's front). The foot keeps its world orientation."""
-    hip, knee, ankle = joints
-    t = np.flatnonzero(weight > 0)
-    if not len(t):
-        return
-    h, k, a = pos[t, hip], pos[t, knee], pos[t, ankle]
-    target = a + weight[t, None] * (goal[t] - a)
-    thigh, shin = np.linalg.norm(k - h, axis=-1), np.linalg.norm(a - k, axis=-1)
-    reach = np.clip(np.linalg.norm(target - h, axis=-1), np.abs(thigh - shin) + 1e-4, thigh + shin - 1e-4)
-    want = np.arccos(np.clip((thigh**2 + shin**2 - reach**2) / (2 * thigh * shin), -1.0, 1.0))
-    # A knee bent forward enough turns in its own plane (the source's, kept); a straight or
-    # backward one is rebuilt about the left-right line, shin to the back.
-    plane = np.cross(h - k, a - k)
-    now = np.arccos(np.clip(np.sum(_unit(h - k) * _unit(a - k), axis=-1), -1.0, 1.0))
-    natural = (np.pi - now > np.radians(5.0)) & (np.sum(plane * left[t], axis=-1) < 0.0)
-    along = _unit(k - h)
-    hinge = left[t] - along * np.sum(left[t] * along, axis=-1, keepdims=True)
-    hinge = np.where((np.linalg.norm(hinge, axis=-1) < 1e-6)[:, None], plane, hinge)  # a thigh along the hips
-    bend = np.pi - want  # 0: straight
-    rebuilt = [quat.rotate(quat.from_axis_angle(_unit(hinge), sign * bend), along) for sign in (1.0, -1.0)]
-    backward = np.sum(rebuilt[0] * forward[t], axis=-1) <= np.sum(rebuilt[1] * forward[t], axis=-1)
-    kept = quat.rotate(quat.from_axis_angle(_unit(plane), want - now), _unit(a - k))  # opens the angle to want
-    shin_dir = np.where(natural[:, None], kept, np.where(backward[:, None], rebuilt[0], rebuilt[1]))
-    turn_knee = arc(_unit(a - k), shin_dir)
-    new_a = k + shin_dir * shin[:, None]
-    swing = arc(_unit(new_a - h), _unit(target - h))
-    foot = glob[t, ankle].copy()
-    chain = joint_path(skeleton, hip, ankle)  # ankle, ..., knee, ..., hip
-    for j in chain[1 : chain.index(knee) + 1]:  # the shin's joints: bent, then swung
-        glob[t, j] = quat.mul(swing, quat.mul(turn_knee, glob[t, j]))
-    for j in chain[chain.index(knee) + 1 :]:  # the thigh's: swung
-        glob[t, j] = quat.mul(swing, glob[t, j])
-    glob[t, ankle] = foot
-    pos[t, knee] = h + quat.rotate(swing, k - h)
-    pos[t, ankle] = h + quat.rotate(swing, new_a - h)
-
-
-def joint_path(skeleton: Skeleton, top: int, bottom: int) -> list[int]:
-    """Joints from `bottom` up to `top`, both included."""
-    chain = [bottom]
-    while chain[-1] != top and skeleton.parents[chain[-1]] >= 0:
-        chain.append(int(skeleton.parents[chain[-1]]))
-    return chain

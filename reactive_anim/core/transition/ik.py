@@ -1,0 +1,89 @@
+"""Two-bone IK: a leg (or an arm) turned so its end reaches toward a goal, and the joint chains it
+turns. Used where feet are held and feet and hands are lifted out of the floor (footing.py) and where
+a retargeted clip's planted feet are pinned (retarget.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..model import quat
+from ..model.arrays import FloatArray
+from ..model.skeleton import Skeleton
+
+
+def arc(u: FloatArray, v: FloatArray) -> FloatArray:
+    """The smallest rotations taking unit vectors u onto v, (..., 4); opposite vectors turn about
+    any axis at right angles."""
+    dot = np.sum(u * v, axis=-1)
+    axis = np.cross(u, v)
+    q = np.concatenate([(1.0 + dot)[..., None], axis], axis=-1)
+    opposite = dot < -1.0 + 1e-9
+    if np.any(opposite):
+        other = np.where(np.abs(u[..., :1]) < 0.9, np.array([1.0, 0, 0]), np.array([0.0, 1, 0]))
+        perpendicular = np.cross(u, other)
+        perpendicular /= np.linalg.norm(perpendicular, axis=-1, keepdims=True)
+        q[opposite] = np.concatenate([np.zeros(perpendicular.shape[:-1] + (1,)), perpendicular], axis=-1)[opposite]
+    return quat.normalize(q)
+
+
+def unit(v: FloatArray) -> FloatArray:
+    """Vectors (..., 3) scaled to length 1 (a zero vector stays zero)."""
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
+
+
+def two_bone_ik(
+    skeleton: Skeleton,
+    pos: FloatArray,
+    glob: FloatArray,
+    joints: tuple[int, int, int],
+    goal: FloatArray,
+    weight: FloatArray,
+    left: FloatArray,
+    forward: FloatArray,
+) -> None:
+    """Turn hip and knee (global rotations, in place) so the ankle reaches toward `goal` by `weight`.
+    A knee bent forward keeps its plane; a straight one (whose plane is float noise, and may point
+    backwards) bends about the body's left-right line (`left`, per frame), its shin toward the back
+    (`forward` is the body's front). The foot keeps its world orientation."""
+    hip, knee, ankle = joints
+    t = np.flatnonzero(weight > 0)
+    if not len(t):
+        return
+    h, k, a = pos[t, hip], pos[t, knee], pos[t, ankle]
+    target = a + weight[t, None] * (goal[t] - a)
+    thigh, shin = np.linalg.norm(k - h, axis=-1), np.linalg.norm(a - k, axis=-1)
+    reach = np.clip(np.linalg.norm(target - h, axis=-1), np.abs(thigh - shin) + 1e-4, thigh + shin - 1e-4)
+    want = np.arccos(np.clip((thigh**2 + shin**2 - reach**2) / (2 * thigh * shin), -1.0, 1.0))
+    # A knee bent forward enough turns in its own plane (the source's, kept); a straight or
+    # backward one is rebuilt about the left-right line, shin to the back.
+    plane = np.cross(h - k, a - k)
+    now = np.arccos(np.clip(np.sum(unit(h - k) * unit(a - k), axis=-1), -1.0, 1.0))
+    natural = (np.pi - now > np.radians(5.0)) & (np.sum(plane * left[t], axis=-1) < 0.0)
+    along = unit(k - h)
+    hinge = left[t] - along * np.sum(left[t] * along, axis=-1, keepdims=True)
+    hinge = np.where((np.linalg.norm(hinge, axis=-1) < 1e-6)[:, None], plane, hinge)  # a thigh along the hips
+    bend = np.pi - want  # 0: straight
+    rebuilt = [quat.rotate(quat.from_axis_angle(unit(hinge), sign * bend), along) for sign in (1.0, -1.0)]
+    backward = np.sum(rebuilt[0] * forward[t], axis=-1) <= np.sum(rebuilt[1] * forward[t], axis=-1)
+    kept = quat.rotate(quat.from_axis_angle(unit(plane), want - now), unit(a - k))  # opens the angle to want
+    shin_dir = np.where(natural[:, None], kept, np.where(backward[:, None], rebuilt[0], rebuilt[1]))
+    turn_knee = arc(unit(a - k), shin_dir)
+    new_a = k + shin_dir * shin[:, None]
+    swing = arc(unit(new_a - h), unit(target - h))
+    foot = glob[t, ankle].copy()
+    chain = joint_path(skeleton, hip, ankle)  # ankle, ..., knee, ..., hip
+    for j in chain[1 : chain.index(knee) + 1]:  # the shin's joints: bent, then swung
+        glob[t, j] = quat.mul(swing, quat.mul(turn_knee, glob[t, j]))
+    for j in chain[chain.index(knee) + 1 :]:  # the thigh's: swung
+        glob[t, j] = quat.mul(swing, glob[t, j])
+    glob[t, ankle] = foot
+    pos[t, knee] = h + quat.rotate(swing, k - h)
+    pos[t, ankle] = h + quat.rotate(swing, new_a - h)
+
+
+def joint_path(skeleton: Skeleton, top: int, bottom: int) -> list[int]:
+    """Joints from `bottom` up to `top`, both included."""
+    chain = [bottom]
+    while chain[-1] != top and skeleton.parents[chain[-1]] >= 0:
+        chain.append(int(skeleton.parents[chain[-1]]))
+    return chain
