@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.arrays import BoolArray, FloatArray
+from ..model.arrays import BoolArray, FloatArray, einsum
 from ..model.floor import surely_on_floor
 from ..physics.probe import PoseProbe
 from ..physics.ragdoll import Ragdoll
@@ -102,7 +102,7 @@ def nearest_in_polygon(polygon: FloatArray, point: FloatArray) -> FloatArray:
     rel = point - polygon
     if len(polygon) > 2 and np.all(edges[:, 0] * rel[:, 1] - edges[:, 1] * rel[:, 0] >= 0.0):
         return np.asarray(point, dtype=np.float64)
-    along = np.einsum("ij,ij->i", rel, edges) / np.maximum(np.einsum("ij,ij->i", edges, edges), 1e-18)
+    along = einsum("ij,ij->i", rel, edges) / np.maximum(einsum("ij,ij->i", edges, edges), 1e-18)
     candidates = polygon + np.clip(along, 0.0, 1.0)[:, None] * edges
     return candidates[np.argmin(np.linalg.norm(candidates - point, axis=1))]
 

@@ -7,6 +7,7 @@ arithmetic they then take for booleans)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -28,3 +29,9 @@ Int32Array = npt.NDArray[np.int32]
 IndexArray = npt.NDArray[np.intp]
 # Masks: comparisons and np.isfinite and the like.
 BoolArray = npt.NDArray[np.bool_]
+
+# np.einsum, typed once: numpy 1.26's stub for it has unparameterised generics that pyright's strict
+# mode reads as partly unknown wherever it is named. Every call in the core sums float64 arrays into
+# a float64 array, which is what this says; the function is numpy's own (looked up in the module's
+# namespace, which has no static type, so only this annotation types it).
+einsum: Callable[..., FloatArray] = vars(np)["einsum"]

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model import quat
-from ..model.arrays import FloatArray, IndexArray
+from ..model.arrays import FloatArray, IndexArray, einsum
 from ..model.errors import SimulationError, SkeletonError
 from ..model.skeleton import Motion
 from .ragdoll import Ragdoll
@@ -80,7 +80,7 @@ def _kinematics(
     rot_m[:, root] = local_m[:, root]
     # A level of the hierarchy at a time: each joint's arithmetic is the same as joint by joint.
     for level, parents in ragdoll.index.kinematic_levels:
-        pos[:, level] = pos[:, parents] + np.einsum("njab,njb->nja", rot_m[:, parents], offsets[:, level])
+        pos[:, level] = pos[:, parents] + einsum("njab,njb->nja", rot_m[:, parents], offsets[:, level])
         rot_m[:, level] = rot_m[:, parents] @ local_m[:, level]
     rot = np.zeros((n, count, 4))
     rot[:, joints] = quat.from_matrix(rot_m[:, joints])
