@@ -105,7 +105,7 @@ class ReactionSettings:
     reaction_window: BC, seconds of free physics after the hit [0.25, a human reaction time].
     transition: C to F, seconds of PD tracking faded into the clip [0.5: against a third of a second,
       the fade's pops and a walker's stops are fewer (tools/bench.py quality), its feet skid more].
-    profile: the ragdoll's joint profile, "anatomical" or "paper" (ragdoll.py) ["anatomical"].
+    profile: the ragdoll's joint profile, "anatomical" or "paper" (physics/anatomy.py) ["anatomical"].
     search_threshold: Eq. 1 cost above which a class's best window passes the search on to the
       next probable class; when none is within it, the most probable class's best window is used
       anyway, marked not accepted (search_with_fallback) [40.0: the sample library's matches of
