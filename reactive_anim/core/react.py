@@ -532,10 +532,9 @@ def _going_down(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact,
     floor) or going down (low and sinking, outcome.collapsing; or low while the motion it plays goes
     to the floor, _played_down), else None (also when the library has no falls). The classifier
     learnt from pushes on walks, runs and stands and has not seen such states: a push during an
-    earlier reaction's deep crouch, the hips at 0.28 m and sinking at 2 m/s, came out a sway at
-    p = 1.00 and the character stood up out of the collapse (23 of 332 random pushes on the shared mocap
-    went down at C and were given a step or a sway); a body lying on the floor was given a sway and
-    stood up."""
+    earlier reaction's deep crouch, the hips low and sinking fast, came out a sway with certainty
+    and the character stood up out of the collapse (how often: docs/measurements.md, "Limits and
+    rules"); a body lying on the floor was given a sway and stood up."""
     if not any(is_fall(slug) for slug in library.class_ranges):
         return None
     body = Body.of(ragdoll.rig)

@@ -96,9 +96,9 @@ SIDE_ANGLE = 45.0  # degrees off the facing axis beyond which a push counts as s
 MAX_STEPS = 8  # corrective steps counted before a push counts as not capturable (the series has converged)
 # A body whose centre of mass is already this low at C (leg lengths above the floor; standing is
 # about 1.1) and sinking this fast (m/s) is falling whatever its XCoM says: the pendulum model holds
-# the height constant. Chosen so that no label changes on pushes from the sample clips (13 of 1,500
-# cross both, all already falls by the XCoM); a push during an earlier reaction's deep crouch sank
-# to 0.3 leg lengths at 2 m/s and was judged a step.
+# the height constant. Chosen so that no label changes on pushes from the sample clips (the few that
+# cross both are already falls by the XCoM; docs/measurements.md, "Limits and rules"); a push during
+# an earlier reaction's deep crouch sank far lower and faster and was judged a step.
 COLLAPSE_HEIGHT = 0.75
 COLLAPSE_SPEED = 0.8
 

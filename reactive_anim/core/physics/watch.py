@@ -32,17 +32,16 @@ FLOOR_TOLERANCE = 0.25  # m a body origin may sink below the floor before it cou
 
 
 # m/s: energy beyond 1/2 M v^2 above the start counts as an explosion. The servos and the root
-# assist do work (raising a crouched body to a standing target adds ~500 J of the 1,220 J that 5 m/s
-# allowed, and a reaction during a lunge went over it); a numerical blow-up adds far more, and the
-# joint and body speed checks catch it too.
+# assist do work (raising a crouched body to a standing target adds a good part of what half this
+# speed allowed, and a reaction during a lunge went over that); a numerical blow-up adds far more,
+# and the joint and body speed checks catch it too (docs/measurements.md, "Limits and rules").
 ENERGY_ALLOWANCE_SPEED = 10.0
 
 
 # m/s: the most an impact may set the hit body's centre of mass moving, faster than a batted ball
 # (about 45 m/s). Pushes beyond it are refused before simulating: no hit does that to a body part,
-# and past 57-86 m/s on the head and upper arms, 95-190 on a hand, the joints spun beyond
-# MAX_JOINT_SPEED (measured on five walks; a hand or foot reaches 50 m/s at 50-190 N·s, the head at
-# 530-880).
+# and a little past it the joints spun beyond MAX_JOINT_SPEED (docs/measurements.md, "Limits and
+# rules": where, per body part, and what strength reaches it).
 MAX_HIT_SPEED = 50.0
 
 
