@@ -6,12 +6,13 @@ function that would raise in the real sidebar raises here. Imports bpy: only for
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 import bpy
 
-_LAYOUT = bpy.types.UILayout.bl_rna
-assert isinstance(_LAYOUT, bpy.types.Struct)  # what bl_rna is (the stubs know it as BlenderRNA only)
+# bl_rna is the class's RNA Struct (the stubs know it as BlenderRNA only; Blender 4.2's is not an
+# instance of bpy.types.Struct at run time, so this is a cast, not an assert).
+_LAYOUT = cast(bpy.types.Struct, bpy.types.UILayout.bl_rna)
 _FUNCTIONS = _LAYOUT.functions
 _ICON = _FUNCTIONS["prop"].parameters["icon"]
 assert isinstance(_ICON, bpy.types.EnumProperty)
