@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from reactive_anim.core.model.rig import Rig
+from reactive_anim.core.model.roles import SIDES
 from reactive_anim.core.model.skeleton import Motion, Skeleton
 from reactive_anim.core.transition.ik import joint_path
 
@@ -35,5 +36,5 @@ def limb_joints(skeleton: Skeleton) -> list[int]:
 
 def _below(skeleton: Skeleton, role: str) -> list[int]:
     rig = Rig.of(skeleton)
-    tops = {rig.joint(f"{role}_{s}") for s in "lr"}
+    tops = {rig.joint(f"{role}_{s}") for s in SIDES}
     return [j for j in range(skeleton.num_joints) if tops & set(joint_path(skeleton, 0, j))]

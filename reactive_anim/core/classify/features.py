@@ -56,6 +56,7 @@ import numpy as np
 from ..model.arrays import AnyFloatArray, FloatArray
 from ..model.errors import SkeletonError
 from ..model.rig import Rig
+from ..model.roles import SIDES
 from ..model.skeleton import Motion, forward_kinematics
 from ..physics.joints import mocap_qpos
 from ..physics.ragdoll import Ragdoll
@@ -104,7 +105,7 @@ TRACKED_ROLES = ("head", "chest", "pelvis")
 FRAME_ROLES = ("hip_l", "hip_r", "shoulder_l", "shoulder_r")
 CAPTURE_FLOOR_PERCENTILE = 2.0  # a low percentile, not the minimum: one frame's marker glitch must not sink the floor
 KEPT_MOTIONS = 4  # motions whose frames' centres of mass a reader keeps
-LEG_ROLES = tuple(f"{part}_{side}" for side in ("l", "r") for part in ("hip", "knee", "ankle"))
+LEG_ROLES = tuple(f"{part}_{side}" for side in SIDES for part in ("hip", "knee", "ankle"))
 
 
 @dataclass(frozen=True)

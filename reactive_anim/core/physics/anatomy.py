@@ -20,6 +20,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from ..model.errors import SimulationError
+from ..model.roles import SIDES
 
 TABLE1_TOTAL_MASS = 97.6
 
@@ -32,7 +33,7 @@ TABLE1_MASSES = {
 
 
 BODY_ROLES = ("pelvis", "waist", "back", "neck") + tuple(
-    f"{part}_{side}" for side in ("l", "r") for part in ("hip", "knee", "ankle", "shoulder", "elbow", "wrist")
+    f"{part}_{side}" for side in SIDES for part in ("hip", "knee", "ankle", "shoulder", "elbow", "wrist")
 )
 
 

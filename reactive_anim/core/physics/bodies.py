@@ -32,7 +32,7 @@ from ..model import quat
 from ..model.arrays import FloatArray, IndexArray
 from ..model.errors import SimulationError, SkeletonError
 from ..model.rig import Rig
-from ..model.roles import part_of, side_of
+from ..model.roles import SIDES, part_of, side_of
 from ..model.skeleton import Motion, Skeleton, forward_kinematics
 from .anatomy import BODY_ROLES, FLEX_TOWARD, TABLE1_MASSES, JointLimits
 
@@ -238,7 +238,7 @@ def _stance_pitch(skeleton: Skeleton, index: dict[str, int], positions: FloatArr
     the stance frames are those where the ankle is within 1 cm of its lowest.
     """
     pitches: list[FloatArray] = []
-    for side in ("l", "r"):
+    for side in SIDES:
         ankle, ball = index[f"ankle_{side}"], foot_point(skeleton, index, side)
         if ball == ankle:
             continue

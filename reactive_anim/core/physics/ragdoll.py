@@ -18,7 +18,7 @@ from ..model import quat
 from ..model.arrays import FloatArray, IndexArray
 from ..model.errors import SimulationError, SkeletonError
 from ..model.rig import Rig
-from ..model.roles import REQUIRED_ROLES, part_of
+from ..model.roles import REQUIRED_ROLES, SIDES, part_of
 from ..model.skeleton import Motion, Skeleton, forward_kinematics
 from .anatomy import (
     GROUP_OF_PART,
@@ -168,7 +168,7 @@ def build_ragdoll(
         ends=ends,
         radii=[RADII[part_of(b.name)] * size for b in bodies],
         hip_r=index["hip_r"],
-        balls={side: foot_point(skeleton, index, side) for side in ("l", "r")},
+        balls={side: foot_point(skeleton, index, side) for side in SIDES},
     )
     start = time.perf_counter()
     text, model = compile_without_touching_pairs(bodies, geometry)
