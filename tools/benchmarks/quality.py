@@ -283,6 +283,7 @@ def measure(
         fades.append((seams["get-up start"], seams["get-up end"]))
     if "resume start" in seams:
         fades.append((seams["resume start"], seams["resume end"]))
+    phases = skid_phases(prof, a, b, lo, reaction, seams)
     steps = prof.skid[a - lo + 1 : b - lo].sum(axis=1)
     skid_at = a + 1 + int(np.argmax(steps)) if len(steps) else a
     fade_slides = [
@@ -309,7 +310,7 @@ def measure(
         "rig": real.rig, "fps": round(fps), "frame": int(impact.frame), "bone": bone, "side": side,
         "strength": impact.strength, "class": reaction.reaction_class, "clip": reaction.clip,
         "window": (a, b), "skid": float(prof.skid_in(a - lo, b - lo).sum()), "skid_at": skid_at,
-        "real_skid": float(real.profile.skid_in(ra, rb).sum() * scale),
+        "skid_phases": phases, "real_skid": float(real.profile.skid_in(ra, rb).sum() * scale),
         "fade_slide": max(fade_slides), "fade_slides": fade_slides, "fade_at": fades[int(np.argmax(fade_slides))][0],
         "depth": depth, "depth_at": depth_at + lo,
         "real_depth": real.profile.largest(real.profile.depth, ra, rb)[0],
@@ -320,6 +321,23 @@ def measure(
         "right_direction": bl.right_direction(side, reaction.reaction_class),
         "ms": reaction.timings.get("total", float("nan")) * 1e3, "warm": warm,
     }  # fmt: skip
+
+
+def skid_phases(prof: bl.Profile, a: int, b: int, lo: int, reaction: Reaction, seams: dict[str, int]) -> dict:
+    """The window's foot skid split where its sources meet: the hit to C (BC), C to F (the
+    transition), F to the resume's fade or the reaction's end (the clip, a chained get-up in it), the
+    resume's fade, and what follows (the take resumed, or the held last frame)."""
+    cuts = [("BC", a), ("C-F", reaction.frame_c), ("clip", reaction.frame_f)]
+    if "resume start" in seams:
+        cuts += [("resume", seams["resume start"]), ("after", seams["resume end"])]
+    else:
+        cuts.append(("after", reaction.end_frame + 1))
+    bounds = [min(max(f, a), b - 1) for _, f in cuts] + [b - 1]
+    steps = prof.skid.sum(axis=1)  # steps[i]: the travel into frame i; a phase [x, y) takes those into x + 1 .. y
+    return {
+        name: float(steps[x + 1 - lo : y + 1 - lo].sum())
+        for (name, _), x, y in zip(cuts, bounds, bounds[1:], strict=False)
+    }
 
 
 def push_grid(real: Real) -> list[tuple[int, str, str, float]]:
@@ -382,6 +400,10 @@ def figures(rows: list[dict], refs: References, failures: int) -> list[Row]:
         v, rv = bl.quantile([r["skid"] for r in sub], 0.5) * 100, bl.quantile([r["real_skid"] for r in sub], 0.5) * 100
         add("foot skid", f"median, {rig}", v, "cm", f"{rv:.3g} cm", f"<= {GOALS['skid_median']}x real",
             v <= GOALS["skid_median"] * rv, reactions=len(sub))  # fmt: skip
+    for phase in ("BC", "C-F", "clip", "resume", "after"):
+        part = [r["skid_phases"][phase] for r in rows if phase in r["skid_phases"]]
+        add("foot skid", f"median in the phase {phase} (of reactions that have it)", bl.quantile(part, 0.5) * 100,
+            "cm", "-", "-", None, reactions=len(part), total_m=round(float(np.sum(part)), 1))  # fmt: skip
     slides = [s for r in rows for s in r["fade_slides"]]
     over = sum(s > GOALS["fade_slide"] for s in slides)
     real_slide = [fade_slide_reference(refs, rig, round(ReactionSettings().transition * fps) + 1)
