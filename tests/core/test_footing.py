@@ -1,9 +1,9 @@
 """Planted feet held across a reaction's seams (core/transition/footing.py), on the project's own clips.
 
 - A standing body dragged along the floor while the sources cross-fade keeps its feet where they
-  stood, up to the hold's limit (beyond it the feet slide the rest), and to the end where they
-  never lift; a walker's hold is let go in the air and the walk after it is untouched; a drag
-  outside the fades is the motion's own.
+  stood, up to the hold's limit (beyond it the feet slide the rest, lifted clear of the floor where
+  they go fast), and to the end where they never lift; a walker's hold is let go in the air and
+  the walk after it is untouched; a drag outside the fades is the motion's own.
 - Reactions on the sample walk slide their feet less than half as far as without the hold, and
   no foot goes through the floor (without the hold, toes went up to 4 cm under).
 - A hand under the floor is lifted straight up onto it, keeping its turn; a hand already under it
@@ -26,7 +26,16 @@ from reactive_anim.core.model.rig import Rig
 from reactive_anim.core.model.skeleton import Motion
 from reactive_anim.core.react import ReactionSettings, character_ragdoll, react
 from reactive_anim.core.search.library import load_library
-from reactive_anim.core.transition.footing import CATCH_UP_FINISH, LIFT_EASE, MAX_OFFSET, hold_feet, lift_onto_floor
+from reactive_anim.core.transition.footing import (
+    CATCH_UP_FINISH,
+    LIFT_EASE,
+    MAX_OFFSET,
+    SWING_BAND,
+    SWING_CLEARANCE,
+    SWING_SPEED,
+    hold_feet,
+    lift_onto_floor,
+)
 from reactive_anim.core.transition.retarget import foot_points, lowest_foot_point
 from tests.support.mocap import REPO
 from tools.devkit.poses import ground_axes
@@ -123,6 +132,25 @@ def test_a_drag_beyond_the_hold_slides_the_feet_by_the_rest():
         points = contact_points(held, side)
         travel = np.linalg.norm(points[START + FRAMES - 1, :2] - points[START - 1, :2])
         assert travel == pytest.approx(0.15, abs=0.01)
+
+
+def test_a_foot_a_fade_sweeps_along_the_floor_is_lifted_clear_and_eased():
+    """Dragged 1.5 m in a second while the sources cross-fade, the straight-legged stance cannot hold
+    its feet back and they go along at about 1.5 m/s: each is lifted clear of the floor
+    (SWING_CLEARANCE) while it sweeps, eased in by at most a centimetre a frame from before the
+    fade; the frames before the range are the input's, bit for bit."""
+    moved = dragged(1.5)
+    floor = sole(moved)
+    held = hold_feet(moved, RIG, (START - 10, START + FRAMES), [(START, START + FRAMES)], floor)
+    assert np.array_equal(held.local_rot[: START - 10], moved.local_rot[: START - 10])
+    for side in "lr":
+        before, after = contact_points(moved, side)[:, 2] - floor, contact_points(held, side)
+        speed = np.r_[0.0, np.linalg.norm(np.diff(after[:, :2], axis=0), axis=1)] * IDLE.fps
+        sweeping = speed > SWING_SPEED + SWING_BAND
+        assert sweeping.sum() > FRAMES // 2, speed[START : START + FRAMES]
+        assert (after[sweeping, 2] - floor).min() >= SWING_CLEARANCE - 1e-6
+        assert before[sweeping].max() < 0.01  # the motion had the foot on the floor
+        assert np.abs(np.diff(after[:, 2])).max() <= 0.0101
 
 
 @pytest.fixture(scope="module")

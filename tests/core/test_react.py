@@ -15,7 +15,7 @@ from reactive_anim.core.model.rig import Rig
 from reactive_anim.core.react import STILL_KEPT, ReactionSettings, bake_reactions, character_ragdoll, react
 from reactive_anim.core.search.library import load_library
 from reactive_anim.core.transition.blend import place
-from reactive_anim.core.transition.footing import MAX_OFFSET
+from reactive_anim.core.transition.footing import MAX_OFFSET, SWING_CLEARANCE
 from tests.support.mocap import REPO, require_mocap
 from tools.devkit import believability as bl
 from tools.devkit.poses import ground_axes, leg_joints
@@ -45,7 +45,8 @@ def forward(motion, frame: int) -> np.ndarray:
 def test_an_override_forces_the_class_and_f_is_the_clips_pose(walk, library, ragdoll) -> None:
     """With a forced class the search covers that class only; at F the output is exactly the placed
     clip's frame (the CF blend's end) but for the legs, which hold a planted foot within
-    footing.MAX_OFFSET of where the clip puts it; before B exactly the input."""
+    footing.MAX_OFFSET of where the clip puts it along the floor, and may lift a foot the fade
+    sweeps up to footing.SWING_CLEARANCE; before B exactly the input."""
     impact = Impact(B, "chest", tuple(forward(walk, B)), 120.0, reaction="step_forward")
     r = react(walk, impact, library, ragdoll=ragdoll)
     assert (r.reaction_class, r.scope) == ("step_forward", "step_forward")
@@ -59,7 +60,7 @@ def test_an_override_forces_the_class_and_f_is_the_clips_pose(walk, library, rag
     assert np.allclose(out.local_rot[r.frame_f, body], clip.local_rot[at_f, body], atol=1e-12)
     assert np.allclose(out.root_pos[r.frame_f], clip.root_pos[at_f], atol=1e-12)
     held = np.linalg.norm(out.global_positions()[r.frame_f] - clip.global_positions()[at_f], axis=-1)
-    assert held.max() <= MAX_OFFSET * Rig.of(walk.skeleton).leg_length + 1e-9
+    assert held.max() <= np.hypot(MAX_OFFSET * Rig.of(walk.skeleton).leg_length, SWING_CLEARANCE) + 1e-9
     assert r.frame_b == B < r.frame_c < r.frame_f <= r.end_frame
 
 

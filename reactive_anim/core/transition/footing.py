@@ -10,9 +10,12 @@ a standing foot's motion along the floor is taken back by an offset, which the l
 adds to the ankle (the foot keeps its orientation). Outside the fades the motion's own steps play
 as they are (a clip's or a get-up's drawn-up heel is meant to slide) and the offset is only carried:
 kept while the foot stands, let go in the air (CATCH_UP_RATE), so the next footprint lands
-where the motion puts it. The hold runs on until every offset is let go (a foot that never lifts
-keeps it to the end of the motion). A foot stands by ramps, not thresholds (see _sliding), so
-a millimetre's difference in the motion moves the result by little. Where a leg cannot reach,
+where the motion puts it. A foot the fade carries fast along the floor (a swing faded into a
+stance) is not held but lifted clear of it, as a step would (_swing_lift): measured, most of
+what the fades slid was such sweeps (docs/measurements.md). The hold runs on until every offset
+is let go (a foot that never lifts keeps it to the end of the motion). A foot stands by ramps,
+not thresholds (see _sliding), so a millimetre's difference in the motion moves the result by
+little. Where a leg cannot reach,
 the offset is capped (MAX_OFFSET) and the foot slides the rest. From the impact to the end of
 the reaction, a foot whose lowest point is under the character's floor (the lowest its feet get
 in its own motion) is also lifted onto it: the ragdoll's soles and the skeleton's toes do not
@@ -48,6 +51,11 @@ SOFT_REACH = 0.95  # of a leg's length: a held foot asking more of it reaches le
 # walking stride into a clip's standing start or a side step's wide stance moves a foot that far;
 # a held foot costs some joint acceleration when it is let go (docs/measurements.md)
 MAX_OFFSET = 0.4
+SWING_SPEED = 1.0  # m/s over the ground: a foot a fade moves faster than this along the floor is lifted ...
+SWING_BAND = 0.5  # ... fully from this much faster (a held foot moves at a few cm/s; a swing at 3-5 m/s) ...
+SWING_CLEARANCE = 0.04  # m: ... to this over the floor (above model/floor.py's ramp: it no longer stands) ...
+SWING_EASE = 0.08  # s: ... eased in and out over this either side
+UP = np.array([0.0, 0.0, 1.0])
 SETTLE = 1.0  # s after the reaction first looked at for the offsets to be let go (a walker's feet lift in it)
 LIFT_EASE = 0.15  # s over which the body is lifted onto the floor before and after the deepest frame
 LIFT_MIN = 0.002  # m: less under the floor than this is left as it is
@@ -106,6 +114,7 @@ def _hold(
         down, slide = _sliding(points[side], floor, motion.fps)
         offset = _offsets(down, np.where(fading[:, None], slide, 0.0), motion.fps, MAX_OFFSET * leg)
         lift = np.where(reaction, np.maximum(floor - points[side][..., 2].min(axis=1), 0.0), 0.0)
+        lift += _swing_lift(points[side] + lift[:, None, None] * UP, offset, fading, floor, motion.fps)
         moves = (np.abs(offset).max(axis=1) > 1e-6) | (lift > 1e-6)
         still_held = still_held or bool(np.abs(offset[-1]).max() > 1e-6)
         if not moves.any():
@@ -201,6 +210,30 @@ def _sliding(points: FloatArray, floor: float, fps: float) -> tuple[FloatArray, 
     return firm[1:].max(axis=1), weight.max(axis=1)[:, None] * slide
 
 
+def _swing_lift(points: FloatArray, offset: FloatArray, fading: BoolArray, floor: float, fps: float) -> FloatArray:
+    """(T,) how far to raise a foot (points (T, P, 3), held by `offset`) that a fade sweeps fast
+    along the floor (`fading`: per step into frame 1..T - 1): its lowest point lifted to
+    SWING_CLEARANCE over the floor (raised by that much at most) as its speed over the ground
+    passes SWING_SPEED, eased in and out over SWING_EASE. Two sources cross-faded while one swings
+    a foot and the other stands on it carry the foot forward at walking speed but at the standing
+    foot's height: the sweep reads as a skate, and lifted clear it reads as the step it is. The
+    points come already lifted onto the floor (this lift goes on top); row 0 (the frame before)
+    stays."""
+    height = points[..., 2]
+    high = np.maximum(height[1:], height[:-1])  # the point that stays lowest over a step (a roll is no sweep)
+    rows, k = np.arange(len(high)), np.argmin(high, axis=1)
+    ground = points[..., :2] + offset[:, None]
+    speed = np.linalg.norm(ground[1:][rows, k] - ground[:-1][rows, k], axis=-1) * fps
+    sweeping = np.clip((speed - SWING_SPEED) / SWING_BAND, 0.0, 1.0) * fading
+    need = np.zeros(len(points))
+    need[1:] = sweeping * np.clip(floor + SWING_CLEARANCE - height[1:].min(axis=1), 0.0, SWING_CLEARANCE)
+    if need.max() <= 0.0:
+        return need
+    lift = _eased(need, max(2, round(SWING_EASE * fps)))
+    lift[0] = 0.0
+    return lift
+
+
 def _offsets(down: FloatArray, slide: FloatArray, fps: float, most: float) -> FloatArray:
     """(T, 2) the ankle's ground offset per frame (row 0, the frame before the range, is zero): the
     slide taken back, at most `most` (m; beyond, the foot slides: MAX_OFFSET); let go in the air
@@ -232,13 +265,18 @@ def lift_onto_floor(motion: Motion, frames: tuple[int, int], floor: float) -> Mo
     depth[first:last] = np.maximum(floor - _lowest_points(motion.slice(first, last)), 0.0)
     if depth.max() < LIFT_MIN:
         return motion
-    reach = max(2, round(LIFT_EASE * motion.fps))
-    held = np.lib.stride_tricks.sliding_window_view(np.pad(depth, reach, mode="edge"), 2 * reach + 1).max(axis=1)
-    lift = _box(_box(held, reach // 2), reach // 2)  # two boxes within the held plateau: never under the depth
+    lift = _eased(depth, max(2, round(LIFT_EASE * motion.fps)))
     lift[:first] = 0.0
     root = motion.root_pos.copy()
     root[:, 2] += lift
     return Motion(motion.skeleton, motion.fps, root, motion.local_rot, motion.local_pos)
+
+
+def _eased(values: FloatArray, reach: int) -> FloatArray:
+    """At least `values` everywhere, eased in and out over `reach` frames either side: the running
+    maximum over 2 reach + 1 frames, smoothed by two boxes that stay within its plateaus."""
+    held = np.lib.stride_tricks.sliding_window_view(np.pad(values, reach, mode="edge"), 2 * reach + 1).max(axis=1)
+    return _box(_box(held, reach // 2), reach // 2)
 
 
 def _box(values: FloatArray, half: int) -> FloatArray:
