@@ -59,7 +59,7 @@ from .model.rig import Rig
 from .model.skeleton import Motion, hold_root, static_root
 from .physics.balance import RootAssist
 from .physics.ragdoll import Ragdoll, build_ragdoll
-from .physics.simulate import SimResult, simulate_impact, track
+from .physics.simulate import SimResult, simulate_push, track
 from .physics.workspace import Workspace
 from .search.library import Library
 from .search.search import Match, search, search_with_fallback
@@ -406,8 +406,9 @@ def impact_query(
 def _bc(
     motion: Motion, impact: Impact, ragdoll: Ragdoll, settings: ReactionSettings, workspace: Workspace | None
 ) -> tuple[SimResult, Motion]:
-    """BC simulated, and the motion up to C with it (the mocap before B, the simulation from B)."""
-    bc = simulate_impact(ragdoll, motion, impact, window=settings.reaction_window, workspace=workspace)
+    """BC simulated (with its unpushed twin, the classifier's reference), and the motion up to C with
+    it (the mocap before B, the simulation from B)."""
+    bc = simulate_push(ragdoll, motion, impact, window=settings.reaction_window, workspace=workspace)
     return bc, _join(motion.slice(0, int(bc.frames[0])), bc.motion)
 
 

@@ -26,7 +26,7 @@ from reactive_anim.core.model.classes import CLASS_SLUGS
 from reactive_anim.core.model.errors import ClassifierError
 from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.physics.ragdoll import build_ragdoll
-from reactive_anim.core.physics.simulate import simulate_impact
+from reactive_anim.core.physics.simulate import simulate_push
 from tests.support.mocap import require_mocap
 from tools.classifier import nets
 from tools.classifier.pushes import plan_pushes, simulate_pushes
@@ -65,7 +65,7 @@ def test_classify_reads_a_simulation_and_returns_a_probability_per_class(shipped
     motion = bvh.read_bvh(SAMPLE_CLIPS[0])
     ragdoll = build_ragdoll(motion.skeleton, reference=motion)
     forward = FeatureReader(ragdoll).facing(motion, 60.9)[0]
-    bc = simulate_impact(ragdoll, motion, Impact(60.9, ragdoll.roles["chest"], tuple(forward), 250.0))
+    bc = simulate_push(ragdoll, motion, Impact(60.9, ragdoll.roles["chest"], tuple(forward), 250.0))
     probabilities = shipped.classify(motion, bc, ragdoll)
     assert probabilities.shape == (len(CLASS_SLUGS),)
     assert probabilities.sum() == pytest.approx(1.0, abs=1e-5)

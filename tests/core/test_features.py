@@ -33,7 +33,7 @@ from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.model.rig import Rig
 from reactive_anim.core.model.skeleton import Motion
 from reactive_anim.core.physics.ragdoll import build_ragdoll
-from reactive_anim.core.physics.simulate import simulate_impact
+from reactive_anim.core.physics.simulate import simulate_push
 
 SAMPLE_CLIPS = Path(__file__).resolve().parents[2] / "sample_clips"
 IMPACT_FRAME = 60.9
@@ -56,7 +56,7 @@ def pushed(motion: Motion, reader: FeatureReader, role: str, towards: str, stren
     frame = reader.facing(motion, IMPACT_FRAME)
     direction = {"forward": frame[0], "back": -frame[0], "left": frame[1], "right": -frame[1]}[towards]
     impact = Impact(IMPACT_FRAME, reader.ragdoll.roles[role], tuple(direction), strength)
-    return reader.simulated(motion, simulate_impact(reader.ragdoll, motion, impact))
+    return reader.simulated(motion, simulate_push(reader.ragdoll, motion, impact))
 
 
 def turned(state: ReactionState, yaw: float, offset: np.ndarray) -> ReactionState:

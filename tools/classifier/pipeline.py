@@ -24,7 +24,7 @@ from reactive_anim.core.model.classes import CLASS_SLUGS, CLASSES, mirror_image
 from reactive_anim.core.model.errors import ReactiveAnimError
 from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.physics.ragdoll import build_ragdoll
-from reactive_anim.core.physics.simulate import simulate_impact
+from reactive_anim.core.physics.simulate import simulate_push
 
 from . import nets
 from .export import OPSET, write_onnx
@@ -323,7 +323,7 @@ def time_classify(path: Path, clip: Path) -> float:
     frame = motion.num_frames / 2
     reader = FeatureReader(ragdoll)
     push = Impact(frame, ragdoll.roles["chest"], tuple(reader.facing(motion, frame)[0]), 50.0)
-    bc = simulate_impact(ragdoll, motion, push)
+    bc = simulate_push(ragdoll, motion, push)
     classifier = load_classifier(path)
     # A new Motion object per call: nothing kept from the call before, as in a bake.
     return _median_us(lambda: classifier.classify(replace(motion), bc, ragdoll), calls=300)

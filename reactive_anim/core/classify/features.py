@@ -43,8 +43,9 @@ What differs from the paper, with the reason:
   sectors (45 degrees either side of the facing axis) are thresholds on them, where on xcom_dx and
   xcom_dy they are the lines |y| = x and |y| = -x. `down` is the rule's one fall criterion that no
   other input shows: a knee or hand on the floor at C with the centre of mass still high.
-  For a simulated push the motion is the mocap at C; a real reaction capture has no unpushed
-  version, so there it is the body at B carried on at its velocity at B.
+  For a simulated push the motion is the same BC run without the push (simulate_push; the
+  outcome rule's module docstring says why not the mocap); a real reaction capture has no
+  unpushed version, so there it is the body at B carried on at its velocity at B.
 """
 
 from __future__ import annotations
@@ -249,19 +250,20 @@ class FeatureReader:
         return spine_frame(self.body, _positions((motion, _clamp_frame(frame, motion)))[0])
 
     def simulated(self, motion: Motion, bc: SimResult) -> ReactionState:
-        """The state of a BC simulation (simulate_impact) of `motion`."""
-        b, c = _clamp_frame(bc.frames[0], motion), _clamp_frame(bc.frames[-1], motion)
-        before, after = _clamp_frame(c - 1, motion), _clamp_frame(c + 1, motion)
+        """The state of a BC simulation of `motion` with its unpushed twin (simulate_push), which
+        is the motion at C."""
+        if bc.unpushed is None:
+            raise ValueError("a reaction state is read from BC with its unpushed twin (simulate_push)")
+        b = _clamp_frame(bc.frames[0], motion)
         positions = _positions((motion, b), (bc.motion, bc.motion.num_frames - 1))
-        com = self._com(motion, [b, before, c, after])
         return ReactionState(
             positions_b=positions[0],
-            com_b=com[0],
+            com_b=self._com(motion, [b])[0],
             positions_c=positions[1],
             com_c=bc.com[-1],
             com_velocity=bc.com_velocity[-1],
-            motion_com=com[2],
-            motion_velocity=_velocity(com[1], com[3], after - before, motion.fps),
+            motion_com=bc.unpushed.com[-1],
+            motion_velocity=bc.unpushed.com_velocity[-1],
             support=self.soles.support(bc.state.qpos, bc.floor, bc.contacts[-1]),
             floor=bc.floor,
         )

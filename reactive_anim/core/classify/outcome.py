@@ -17,10 +17,15 @@ THE PUSH'S DEMAND. A walker's XCoM is ahead of its stance foot most of the time 
 own next step captures it: that is walking, not a reaction. So the rule measures how far the push
 took the body from the motion it was playing:
     d_xi = xi(simulated, C) - xi(motion, C),
-the motion's own XCoM coming from its mocap pose at C through the ragdoll's masses. (An unpushed
-simulation as the reference was tried and dropped: the sample walker's contacts make its response
-to a 10 N·s push non-monotonic, a forward push moving its XCoM back by up to 9 cm, so labels near
-zero push flipped with the gait phase; the mocap is the motion the character means to make.)
+the motion's own XCoM being that of the same BC run without the push (physics.simulate_push).
+The mocap pose at C through the ragdoll's masses was the reference until 2026-11-28, but BC's weak
+servos do not follow the mocap: the unpushed body departs from it by a median 10 cm (p90 15 cm)
+at C, as far as a 40 N·s push moves it, and 17% of front and back pushes at 40 N·s got a side or
+the opposite direction's class. Against the twin the departure falls in the push's sector far more
+often (docs/measurements.md). Its cost: a second BC run per impact. (An unpushed reference had been
+tried before and dropped: the sample walker's contacts make its response to a 10 N·s push
+non-monotonic, a forward push moving its XCoM back by up to 9 cm, so labels near zero push flip
+with the gait phase. They still do; at 40 N·s and up the twin is the better reference.)
 The motion's CoP is taken as the point of the base of support nearest to its XCoM (the XCoM
 itself when it is inside, as in quiet standing; the front of the foot for a walker). From there the
 CoP can still move to the edge of the base of support along d_xi (the ankle strategy: Hof,
@@ -82,7 +87,7 @@ import numpy as np
 from ..model.arrays import FloatArray
 from ..model.impact import Impact
 from ..model.skeleton import Motion
-from ..physics.simulate import REACTION_WINDOW, SimResult, simulate_impact
+from ..physics.simulate import REACTION_WINDOW, SimResult, simulate_push
 from ..physics.workspace import Workspace
 from .capture import GRAVITY
 from .features import Body, FeatureReader, ReactionState
@@ -202,6 +207,6 @@ def simulate_outcome(
     workspace: Workspace | None = None,
 ) -> tuple[SimResult, ReactionState, Outcome]:
     """Simulate an impact's BC on the reader's ragdoll and judge the state at C."""
-    bc = simulate_impact(reader.ragdoll, motion, impact, window=window, workspace=workspace)
+    bc = simulate_push(reader.ragdoll, motion, impact, window=window, workspace=workspace)
     state = reader.simulated(motion, bc)
     return bc, state, judge(reader.body, state, (bc.frames[-1] - impact.frame) / motion.fps)

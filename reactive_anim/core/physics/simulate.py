@@ -24,7 +24,7 @@ How, and what differs from the paper, with the reason:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
@@ -91,6 +91,7 @@ class SimResult:
     first_contact: dict[str, float]
     state: SimState
     assist_fraction: float = 0.0
+    unpushed: SimResult | None = None  # simulate_push: the same BC run without the push
 
     @property
     def com_height(self) -> FloatArray:
@@ -313,6 +314,37 @@ def simulate_impact(
     result is sampled at the motion's frames ceil(B) .. C with C = round(B + window * fps); frames
     past the motion's end hold its last pose as the servo target. result.state is the state at C.
     """
+    return _simulate_bc(ragdoll, motion, (impact,), window, gains, workspace)[0]
+
+
+def simulate_push(
+    ragdoll: Ragdoll,
+    motion: Motion,
+    impact: Impact,
+    *,
+    window: float = REACTION_WINDOW,
+    workspace: Workspace | None = None,
+) -> SimResult:
+    """BC (simulate_impact) with its unpushed twin in result.unpushed: the same run from the same
+    state with a push of no strength. The outcome rule measures a push's effect against the twin
+    rather than against the mocap: BC's weak servos do not follow the mocap, so an unpushed body
+    drifts from it by about as much as a 40 N·s push moves it (docs/measurements.md)."""
+    bc, unpushed = _simulate_bc(ragdoll, motion, (impact, replace(impact, strength=0.0)), window, BC_GAINS, workspace)
+    bc.unpushed = unpushed
+    return bc
+
+
+def _simulate_bc(
+    ragdoll: Ragdoll,
+    motion: Motion,
+    impacts: tuple[Impact, ...],
+    window: float,
+    gains: ServoGains,
+    workspace: Workspace | None,
+) -> list[SimResult]:
+    """simulate_impact for impacts on the same bone at the same frame: one start state and one
+    table of targets."""
+    impact = impacts[0]
     if not (np.isfinite(window) and window > 0):
         raise SimulationError(f"reaction window must be a positive number of seconds, got {window!r}")
     if not 0 <= impact.frame <= motion.num_frames - 1:
@@ -328,21 +360,23 @@ def simulate_impact(
     # Servo targets: the motion continuing after B (its last pose held past its end), on a clock
     # whose frame 0 is the table's first frame.
     extra = max(0, c + 2 - (table.first + len(table.qpos) - 1))
-    plan = _Plan(
+    follow = local_rotations(motion, np.arange(int(np.ceil(b)), c + 1))
+    plans = [_Plan(
         targets=np.concatenate([table.qpos, np.repeat(table.qpos[-1:], extra, axis=0)]),
         fps=motion.fps,
         sample_offsets=np.arange(int(np.ceil(b)), c + 1, dtype=np.float64) - table.first,
         start_offset=b - table.first,
         gains=gains,
-        hit=(body.body_id, impact),
+        hit=(body.body_id, hit),
         clock=b / motion.fps,
-        follow=local_rotations(motion, np.arange(int(np.ceil(b)), c + 1)),
-    )
+        follow=follow,
+    ) for hit in impacts]  # fmt: skip
     with workspace_for(ragdoll, workspace) as ws:
         start = _state_from_table(ws, motion, b, table)
-        result = _run(ws, start, plan)
-    result.frames = result.frames + table.first
-    return result
+        results = [_run(ws, start, plan) for plan in plans]
+    for result in results:
+        result.frames = result.frames + table.first
+    return results
 
 
 def track(
