@@ -19,7 +19,9 @@ little. Where a leg cannot reach,
 the offset is capped (MAX_OFFSET) and the foot slides the rest. From the impact to the end of
 the reaction, a foot whose lowest point is under the character's floor (the lowest its feet get
 in its own motion) is also lifted onto it: the ragdoll's soles and the skeleton's toes do not
-quite agree, and toes went centimetres under the floor in transitions. A hand under the floor
+quite agree, and toes went centimetres under the floor in transitions. That lift is eased in and
+out over SWING_EASE like the swing's: dropped in the frame a foot rose out of the floor by
+itself, it turned a knee from 1 to 11 rad/s in a frame at C. A hand under the floor
 there is lifted onto it by the arm's IK, as a foot is: a fade between two poses whose hands both
 clear the floor can pass one under it, and a clip cast onto longer arms puts the hands a few cm
 under (docs/measurements.md). Knees a fade puts under the floor cannot be lifted so: with the
@@ -54,7 +56,7 @@ MAX_OFFSET = 0.4
 SWING_SPEED = 1.0  # m/s over the ground: a foot a fade moves faster than this along the floor is lifted ...
 SWING_BAND = 0.5  # ... fully from this much faster (a held foot moves at a few cm/s; a swing at 3-5 m/s) ...
 SWING_CLEARANCE = 0.04  # m: ... to this over the floor (above model/floor.py's ramp: it no longer stands) ...
-SWING_EASE = 0.08  # s: ... eased in and out over this either side
+SWING_EASE = 0.08  # s: ... eased in and out over this either side (a foot's lift onto the floor too)
 UP = np.array([0.0, 0.0, 1.0])
 SETTLE = 1.0  # s after the reaction first looked at for the offsets to be let go (a walker's feet lift in it)
 LIFT_EASE = 0.15  # s over which the body is lifted onto the floor before and after the deepest frame
@@ -114,6 +116,8 @@ def _hold(
         down, slide = _sliding(points[side], floor, motion.fps)
         offset = _offsets(down, np.where(fading[:, None], slide, 0.0), motion.fps, MAX_OFFSET * leg)
         lift = np.where(reaction, np.maximum(floor - points[side][..., 2].min(axis=1), 0.0), 0.0)
+        lift = _eased(lift, max(2, round(SWING_EASE * motion.fps)))
+        lift[0] = 0.0
         lift += _swing_lift(points[side] + lift[:, None, None] * UP, offset, fading, floor, motion.fps)
         moves = (np.abs(offset).max(axis=1) > 1e-6) | (lift > 1e-6)
         still_held = still_held or bool(np.abs(offset[-1]).max() > 1e-6)
