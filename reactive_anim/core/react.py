@@ -72,7 +72,7 @@ from .search.window import (
     joint_weights,
     yaw_rotate,
 )
-from .transition.blend import blend, blend_travel, fade_weights, place
+from .transition.blend import blend, blend_travel, carry, fade_weights, place
 from .transition.casting import Casting
 from .transition.footing import hold_feet, lift_onto_floor
 
@@ -82,6 +82,7 @@ RESUME_SEARCH = 1.0  # s after the earliest fade start within which the fade may
 DOWN_AHEAD = 0.5  # s after C within which the motion being played reaching the floor counts (_going_down)
 DOWN_HEIGHT = 0.5  # leg lengths: a pelvis this low over the floor sits, kneels or lies (_going_down)
 STILL_KEPT = 0.5  # s of a clip's still tail played before the motion resumes or a get-up begins
+CARRY_TIME = 0.15  # s over which theta_blend lets go of the body's departure at C (blend.carry; measured 0.15-0.25)
 # The classes that keep the feet nearest each, nearest first, for a push that keeps its feet whose
 # class the library lacks: the same way with more or fewer steps, then a sway. Not a step the other
 # way (a push from behind does not step back), nor a step for a sway (more than the push called for):
@@ -287,8 +288,11 @@ def react(
         clip = place(clip_raw, *placement)
     steps = max(1, round(settings.transition * motion.fps))
     clip_ef = _frames(clip, frame_e, steps + 1)  # E..F; a clip that ends sooner holds its last pose
-    # theta_blend: what the character was playing (an earlier reaction, if one plays) faded into the clip.
-    target = blend(_frames(motion, frame_c, steps + 1), clip_ef, fade_weights(steps + 1))
+    # theta_blend: what the character was playing (an earlier reaction, if one plays), starting from
+    # the simulated pose at C (blend.carry), faded into the clip.
+    played = carry(_frames(motion, frame_c, steps + 1), before.slice(frame_c, frame_c + 1),
+                   round(CARRY_TIME * motion.fps))  # fmt: skip
+    target = blend(played, clip_ef, fade_weights(steps + 1))
     cd = track(ragdoll, bc.state, target, steps / motion.fps, assist=settings.assist, workspace=workspace)
     clock.lap("cd")
     transition = blend(cd.motion, clip_ef, fade_weights(steps + 1))

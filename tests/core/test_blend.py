@@ -8,7 +8,7 @@ import pytest
 from reactive_anim.core.model import bvh, quat
 from reactive_anim.core.model.errors import SkeletonError
 from reactive_anim.core.model.skeleton import Motion, Skeleton
-from reactive_anim.core.transition.blend import blend, blend_travel, fade_weights, place
+from reactive_anim.core.transition.blend import blend, blend_travel, carry, fade_weights, place
 from tests.support.mocap import REPO
 
 
@@ -35,6 +35,20 @@ def test_blend_equals_each_motion_at_its_end_and_lies_between(walk) -> None:
     to_a, to_b = quat.angle_between(mid, a.local_rot[15]), quat.angle_between(mid, b.local_rot[15])
     total = quat.angle_between(a.local_rot[15], b.local_rot[15])
     assert np.allclose(to_a + to_b, total, atol=1e-9)  # on the shortest arc between the two
+
+
+def test_carry_starts_from_the_pose_and_lets_go_of_it_smoothly(walk) -> None:
+    """theta_blend's start (blend.carry): the first frame takes the pose's rotations, the turn
+    between them shrinks without a step, and from `frames` on the motion is its own; the root's
+    path is never touched."""
+    motion, pose = walk.slice(40, 71), walk.slice(100, 101)
+    out = carry(motion, pose, 12)
+    assert np.allclose(quat.angle_between(out.local_rot[0], pose.local_rot[0]), 0.0, atol=1e-7)
+    assert np.array_equal(out.root_pos, motion.root_pos)
+    assert np.allclose(quat.angle_between(out.local_rot[12:], motion.local_rot[12:]), 0.0, atol=1e-7)
+    gap = quat.angle_between(out.local_rot, motion.local_rot).max(axis=1)  # the turn still carried
+    assert gap[0] > 0.3 and np.all(np.diff(gap[:13]) <= 1e-9)
+    assert np.abs(np.diff(gap[:13])).max() < 0.25 * gap[0]  # let go over frames, never at once
 
 
 def test_blend_refuses_other_skeletons_or_lengths(walk) -> None:

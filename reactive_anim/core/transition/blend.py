@@ -43,6 +43,21 @@ def fade_weights(frames: int) -> FloatArray:
     return s * s * s * (s * (6.0 * s - 15.0) + 10.0)
 
 
+def carry(motion: Motion, pose: Motion, frames: int) -> Motion:
+    """`motion` with its first frame turned into `pose`'s first frame: each joint's turn from the
+    one to the other carried on and let go over `frames` frames (1 - fade_weights), after which the
+    motion is its own. The root's position stays the motion's. theta_blend starts so from the
+    simulated body at C rather than from the motion it was pushed off: CD's stiff servos, switched
+    on at C, no longer pull the body back toward the unpushed pose in its first frames, and the
+    motion's own pace comes back once they hold (docs/measurements.md)."""
+    delta = quat.mul(quat.conj(motion.local_rot[0]), pose.local_rot[0])
+    kept = np.zeros(motion.num_frames)
+    span = min(max(frames, 2), motion.num_frames)
+    kept[:span] = 1.0 - fade_weights(max(frames, 2))[:span]
+    turn = quat.slerp(np.broadcast_to(quat.identity(), delta.shape), delta, np.repeat(kept[:, None], len(delta), 1))
+    return Motion(motion.skeleton, motion.fps, motion.root_pos, quat.mul(motion.local_rot, turn), motion.local_pos)
+
+
 def blend(a: Motion, b: Motion, weights: FloatArray) -> Motion:
     """Per frame, `a` faded into `b` by weights (T,) in [0, 1]: root and joint offsets lerped, joint
     rotations slerped (one arc per joint, see the module docstring), a root's single child in world
