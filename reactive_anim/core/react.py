@@ -16,8 +16,10 @@ What we add beyond the paper, and why:
 - A clip whose library entry names a `next` clip (a get-up after a fall, paper Fig. 3) is followed
   by it, placed where the fall ends and faded in over `chain_blend`.
 - Resume: when the reaction ends standing, the original motion resumes. Its best re-entry window
-  (Eq. 1, after B) is aligned with a window of the reaction's frames and faded in over it, the
-  pelvis' travel faded by velocity (blend.blend_travel), so a walker who stumbles walks on. The
+  (Eq. 1, after B) is aligned with a window of the reaction's frames and faded in over
+  RESUME_FADE, the pelvis' travel faded by velocity over the window (blend.blend_travel), so a
+  walker who stumbles walks on. (Over the 0.27 s window alone, a side step's wide stance handed
+  back to the walk raised the pelvis 21 cm with 20 m/s² at both ends: docs/measurements.md.) The
   fade may start from F on (after a get-up, at its end), where Eq. 1 plus a cost per second of
   waiting (RESUME_WAIT) is least: a walker walks on once the stumble's step has landed instead of
   standing through the clip's recovery, and a stand resumes where the clip has come to rest. A
@@ -79,6 +81,8 @@ from .transition.footing import hold_feet, lift_onto_floor
 RESUME_WAIT = 60.0  # Eq. 1 cost per second a reaction goes on before the motion resumes (_resume)
 RESUME_RATE = 30.0  # fade starts and re-entries tried per second (_resume)
 RESUME_SEARCH = 1.0  # s after the earliest fade start within which the fade may start (_resume)
+# s the resume fades the pose over; the pelvis' travel fades over the re-entry's Eq. 1 window (_resume)
+RESUME_FADE = 0.4
 DOWN_AHEAD = 0.5  # s after C within which the motion being played reaching the floor counts (_going_down)
 DOWN_HEIGHT = 0.5  # leg lengths: a pelvis this low over the floor sits, kneels or lies (_going_down)
 STILL_KEPT = 0.5  # s of a clip's still tail played before the motion resumes or a get-up begins
@@ -612,7 +616,7 @@ def _resume_or_hold(
     resumed_at, fade = None, []
     if window and min(source.num_frames, out.num_frames + round(source.fps)) - first > window:
         out, resumed_at, start = _resume(out, source, first, window, rig, earliest)
-        fade = [(start, start + window)]
+        fade = [(start, start + resume_fade_frames(window, out.fps))]
     missing = source.num_frames - out.num_frames  # a bake never shortens the action
     if missing > 0:
         hold = out.slice(out.num_frames - 1, out.num_frames)
@@ -623,7 +627,8 @@ def _resume_or_hold(
 def _resume(out: Motion, source: Motion, first: int, window: int, rig: Rig, earliest: int) -> tuple[Motion, int, int]:
     """The source's best re-entry window (Eq. 1, at source frames from `first` to a second past the
     fade's start) aligned with `out`'s `window` frames from the best fade start (from `earliest` to
-    the last `window` frames), faded in over them (blend_travel) and played on from there. The fade
+    the last `window` frames), faded in from there over resume_fade_frames (the pelvis' travel over
+    `window` frames: blend_travel) and played on. The fade
     start weighs in: each second the reaction goes on past `earliest` costs RESUME_WAIT (a pushed
     walker whose step has landed walks on rather than standing through the clip's recovery, while
     a stand resumes where the clip has come to rest, which matches it far better). Starts and
@@ -654,17 +659,25 @@ def _resume(out: Motion, source: Motion, first: int, window: int, rig: Rig, earl
         j = int(np.argmin(costs))
         tried.append((float(costs[j]) + wait, start, first + j * stride))
     _, begin, entry = min(tried)  # on an exact tie, the earliest start and re-entry
-    tail = out.slice(begin, begin + window)
+    fade = resume_fade_frames(window, out.fps)
+    tail = _frames(out, begin, fade)
     yaw, offset = _alignment(tail.slice(0, 1), source.slice(entry, entry + 1), rig)
     resumed = place(source.slice(entry, source.num_frames), yaw, offset)
     pelvis = rig.joint("pelvis")
-    faded, carried = blend_travel(tail, resumed.slice(0, window), fade_weights(window), pelvis)
-    rest = place(resumed.slice(window, resumed.num_frames), 0.0, carried)
+    pace = np.concatenate([fade_weights(window), np.ones(fade - window)])
+    faded, carried = blend_travel(tail, _frames(resumed, 0, fade), fade_weights(fade), pelvis, pace)
+    rest = place(resumed.slice(min(fade, resumed.num_frames), resumed.num_frames), 0.0, carried)
     return _join(out.slice(0, begin), faded, rest), entry, begin
 
 
 # ---------------------------------------------------------------------------------------------
 # Helpers
+
+
+def resume_fade_frames(window: int, fps: float) -> int:
+    """The resume's fade in frames: RESUME_FADE, or the re-entry's Eq. 1 window (`window` frames)
+    if that is longer."""
+    return max(window, round(RESUME_FADE * fps))
 
 
 def _alignment(anchor: Motion, moving: Motion, rig: Rig) -> tuple[float, tuple[float, float]]:

@@ -244,6 +244,10 @@ def test_reaction_seams() -> None:
     fall = {"C": 40, "F": 50, "get-up start": 111, "get-up end": 117}  # the get-up's 90 frames end at 200
     assert bl.reaction_seams(Fake("getup", None), 4, 90, 6) == fall
     assert bl.reaction_seams(Fake(None, 70), 4) == {"C": 40, "F": 50, "resume start": 197, "resume end": 201}
+    # a get-up the walk resumes after: the 12-frame fade starts the 4-frame window before the
+    # get-up's end (193) and holds its last pose for the other 8
+    both = {"C": 40, "F": 50, "get-up start": 103, "get-up end": 109, "resume start": 189, "resume end": 201}
+    assert bl.reaction_seams(Fake("getup", 70), 12, 90, 6, 4) == both
 
 
 def test_end_sites_follow_their_joint() -> None:

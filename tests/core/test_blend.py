@@ -80,6 +80,13 @@ def test_a_travel_fade_changes_pace_by_the_speed_gap_and_the_next_source_carries
     assert np.allclose(end, still.global_positions()[-1, pelvis, :2] + carried, atol=1e-9)
     assert np.linalg.norm(carried) > 0.5  # it went on forward rather than back to the still spot
     assert np.allclose(travelled.global_positions()[-1, :, 2], still.global_positions()[-1, :, 2])  # heights faded
+    # The resume's way: the pace taken up over the first 4 steps, the pose over all 8: from then on
+    # the pelvis steps as the still source does (not at all), while the pose is still fading.
+    pace = np.concatenate([fade_weights(5), np.ones(frames - 5)])
+    quick, _ = blend_travel(moving, still, w, pelvis, pace)
+    steps = np.linalg.norm(np.diff(quick.global_positions()[:, pelvis, :2], axis=0), axis=1)
+    assert steps[0] > 0.0 and np.allclose(steps[4:], 0.0, atol=1e-9)
+    assert not np.allclose(quick.local_rot[5], still.local_rot[5])
 
 
 def test_place_turns_and_moves_the_whole_motion_rigidly(walk) -> None:

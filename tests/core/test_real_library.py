@@ -24,7 +24,7 @@ from reactive_anim.core.classify.classifier import load_classifier
 from reactive_anim.core.model import bvh
 from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.model.skeleton import Motion, frame_times
-from reactive_anim.core.react import KEPT_CLIP, ReactionSettings, character_ragdoll, react
+from reactive_anim.core.react import KEPT_CLIP, ReactionSettings, character_ragdoll, react, resume_fade_frames
 from reactive_anim.core.search.library import Library, load_library
 from reactive_anim.core.transition.casting import Casting
 from tests.support.mocap import REPO, require_mocap
@@ -111,7 +111,9 @@ def _fall_and_get_up(walk: Motion, ragdoll, library: Library):
     reaction = react(walk, push, library, ragdoll=ragdoll, casting=casting)
     assert reaction.chained is not None
     getup = casting.clip(reaction.chained, walk.fps)
-    return reaction, getup, reaction.end_frame + 1 - getup.num_frames
+    window = round(library.window * walk.fps / library.fps)  # the walk resumes from there to its fade's end
+    getup_end = reaction.end_frame + 1 - resume_fade_frames(window, walk.fps) + window
+    return reaction, getup, getup_end - getup.num_frames
 
 
 @pytest.mark.mocap
@@ -130,10 +132,12 @@ def test_a_chain_with_frames_plays_from_that_frame(walk, ragdoll, falls) -> None
     # floor plan; where the cast get-up lies a few cm under the walk's floor, the whole body is
     # lifted onto it, and hands and feet by their IK: the trunk's pose is the cast clip's).
     overlap = round(ReactionSettings().chain_blend * walk.fps)
-    resume = round(falls.window * walk.fps / falls.fps)
+    # the walk fades in from the re-entry window before the get-up's end, holding its last pose after
+    window = round(falls.window * walk.fps / falls.fps)
+    resume = resume_fade_frames(window, walk.fps)
     assert reaction.motion is not None
     played = _trunk_rise(reaction.motion, ragdoll.roles)[seam + overlap : reaction.end_frame + 1 - resume]
-    assert np.allclose(played, _trunk_rise(getup, ragdoll.roles)[overlap : getup.num_frames - resume], atol=1e-6)
+    assert np.allclose(played, _trunk_rise(getup, ragdoll.roles)[overlap : getup.num_frames - window], atol=1e-6)
 
 
 @pytest.mark.mocap

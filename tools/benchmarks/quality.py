@@ -38,7 +38,14 @@ from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.model.skeleton import Motion, root_child
 from reactive_anim.core.physics.ragdoll import Ragdoll
 from reactive_anim.core.physics.workspace import Workspace
-from reactive_anim.core.react import Reaction, ReactionClassifier, ReactionSettings, character_ragdoll, react
+from reactive_anim.core.react import (
+    Reaction,
+    ReactionClassifier,
+    ReactionSettings,
+    character_ragdoll,
+    react,
+    resume_fade_frames,
+)
 from reactive_anim.core.search.library import Library, load_library
 from reactive_anim.core.transition.casting import Casting
 from reactive_anim.core.transition.ik import joint_path
@@ -243,7 +250,7 @@ class Pushing:
         if reaction.chained is not None:
             getup = self.casting.clip(reaction.chained, fps).num_frames
             fade = max(1, min(round(settings.chain_blend * fps), getup - 1))
-        return bl.reaction_seams(reaction, window, getup, fade)
+        return bl.reaction_seams(reaction, resume_fade_frames(window, fps), getup, fade, window)
 
 
 def window_of(reaction: Reaction, fps: float, frames: int) -> tuple[int, int]:

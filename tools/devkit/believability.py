@@ -318,22 +318,30 @@ class Seamed(Protocol):
 
 
 def reaction_seams(
-    reaction: Seamed, resume_window: int, getup_frames: int | None = None, getup_fade: int = 0
+    reaction: Seamed,
+    resume_fade: int,
+    getup_frames: int | None = None,
+    getup_fade: int = 0,
+    resume_window: int | None = None,
 ) -> dict[str, int]:
     """Where a core Reaction's sources meet, as frames of the output: C and F (the transition's fade),
     the get-up's fade-in start and end (getup_frames: the chained clip's length at the output's rate,
-    getup_fade: its fade's frames), the resume's fade start and end (resume_window: its frames).
-    react.py builds them so: a chained get-up starts its fade where the fall ends and plays on to
-    end_frame; a resume fades over the last `resume_window` frames to end_frame and the source
-    plays on from end_frame + 1."""
+    getup_fade: its fade's frames), the resume's fade start and end (resume_fade: its frames;
+    resume_window: the re-entry's Eq. 1 window, default the fade). react.py builds them so: a
+    resume fades over the last `resume_fade` frames to end_frame and the source plays on from
+    end_frame + 1; a chained get-up starts its fade where the fall ends and plays on to the
+    resume's start plus the window (its last pose held through the rest of the resume's fade), or
+    to end_frame when nothing resumes."""
     seams = {"C": int(reaction.frame_c), "F": int(reaction.frame_f)}
     end = int(reaction.end_frame)
+    resumed = reaction.resumed_at is not None
     if reaction.chained is not None and getup_frames:
-        seams["get-up start"] = end + 1 - getup_frames
+        getup_end = end + 1 - resume_fade + (resume_fade if resume_window is None else resume_window)
+        seams["get-up start"] = (getup_end if resumed else end + 1) - getup_frames
         if getup_fade:
-            seams["get-up end"] = end + 1 - getup_frames + getup_fade
-    if reaction.resumed_at is not None:
-        seams["resume start"] = end + 1 - resume_window
+            seams["get-up end"] = seams["get-up start"] + getup_fade
+    if resumed:
+        seams["resume start"] = end + 1 - resume_fade
         seams["resume end"] = end + 1
     return seams
 

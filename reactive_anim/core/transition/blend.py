@@ -84,9 +84,13 @@ def blend(a: Motion, b: Motion, weights: FloatArray) -> Motion:
     return Motion(a.skeleton, a.fps, root, rot, local_pos)
 
 
-def blend_travel(a: Motion, b: Motion, weights: FloatArray, pelvis: int) -> tuple[Motion, tuple[float, float]]:
+def blend_travel(
+    a: Motion, b: Motion, weights: FloatArray, pelvis: int, travel: FloatArray | None = None
+) -> tuple[Motion, tuple[float, float]]:
     """`blend`, with the pelvis' travel over the floor faded by velocity rather than by position, and
     the ground offset (x, y) by which `b` must be moved to carry on from the fade's last frame.
+    travel: the weights the travel fades by (default `weights`): the resume takes up the walk's
+    pace over a shorter fade than its pose, so that a walker does not dawdle through it.
 
     For the resume, where a reaction hands back to the motion it interrupted: a position fade from
     a stumble into a walk placed at the fade's first frame pulls the body from one path onto the
@@ -98,7 +102,7 @@ def blend_travel(a: Motion, b: Motion, weights: FloatArray, pelvis: int) -> tupl
     used for C..F: there the body would carry the hit's pace further than the clip's legs step,
     and the feet skid."""
     out = blend(a, b, weights)
-    w = np.asarray(weights, dtype=np.float64)
+    w = np.asarray(weights if travel is None else travel, dtype=np.float64)
     if len(w) < 2:
         return out, (0.0, 0.0)
     pa, pb, po = (m.global_positions()[:, pelvis, :2] for m in (a, b, out))
