@@ -51,16 +51,21 @@ def test_the_same_reactions_wherever_the_character_stands(empty_scene, where, lo
 
     assert [(r["clip"], r["class"]) for r in placed_rows] == [(r["clip"], r["class"]) for r in rows], where
     # A turned object's rest frames differ by float round-off, and the simulation amplifies it: 1e-4
-    # of noise on the walk moves a reaction's best cost by up to 0.3; here the last push (p 0.980
-    # against 0.977 on Blender 5.x) costs 0.05 more and its reaction moves keys by up to 3 cm, while
-    # the keys before it agree to 2e-3. (Reading world heights, fixed long ago, moved costs by 48.)
+    # of noise on the walk moves a reaction's best cost by up to 0.3. Each push starts from the
+    # reactions before it, so the noise grows push by push: on Blender 5.x (other round-off than
+    # 4.x) the second push costs 0.04 more, its sway (simulated twice since 2026-11-28, with and
+    # without the push) ends 8.5 mm apart in the pelvis and 3 degrees in an arm, and the third push
+    # costs 0.95 more, with the same clips and classes throughout. The first reaction, and every
+    # key before the second push, agree to 2e-3. Moved or raised, everything agrees exactly.
+    # (Reading world heights, fixed long ago, moved costs by 48.)
     turned = turn != 0.0
     costs = [r["cost"] for r in placed_rows], [r["cost"] for r in rows]
-    np.testing.assert_allclose(*costs, atol=0.1 if turned else 1e-3)
+    np.testing.assert_allclose(costs[0][:1], costs[1][:1], atol=0.1 if turned else 1e-3)
+    np.testing.assert_allclose(*costs, atol=1.5 if turned else 1e-3)
     assert placed_keys.keys() == keys.keys()
-    last_push = max(r["frame"] for r in rows) if turned else np.inf
+    second_push = sorted(r["frame"] for r in rows)[1] if turned else np.inf
     for channel, values in keys.items():
-        difference = values_before(placed_keys[channel], last_push) - values_before(values, last_push)
+        difference = values_before(placed_keys[channel], second_push) - values_before(values, second_push)
         assert np.abs(difference).max(initial=0.0) <= (2e-3 if turned else 0.0), (where, channel)
     # the bake plays where the object is: the pelvis moved and turned with it
     bpy.context.scene.frame_set(30)
