@@ -615,8 +615,8 @@ def _resume_or_hold(
     earliest = out.num_frames - window if earliest is None else max(0, min(earliest, out.num_frames - window))
     resumed_at, fade = None, []
     if window and min(source.num_frames, out.num_frames + round(source.fps)) - first > window:
-        out, resumed_at, start = _resume(out, source, first, window, rig, earliest)
-        fade = [(start, start + resume_fade_frames(window, out.fps))]
+        out, resumed_at, faded = _resume(out, source, first, window, rig, earliest)
+        fade = [faded]
     missing = source.num_frames - out.num_frames  # a bake never shortens the action
     if missing > 0:
         hold = out.slice(out.num_frames - 1, out.num_frames)
@@ -624,7 +624,9 @@ def _resume_or_hold(
     return out, resumed_at, fade
 
 
-def _resume(out: Motion, source: Motion, first: int, window: int, rig: Rig, earliest: int) -> tuple[Motion, int, int]:
+def _resume(
+    out: Motion, source: Motion, first: int, window: int, rig: Rig, earliest: int
+) -> tuple[Motion, int, tuple[int, int]]:
     """The source's best re-entry window (Eq. 1, at source frames from `first` to a second past the
     fade's start) aligned with `out`'s `window` frames from the best fade start (from `earliest` to
     the last `window` frames), faded in from there over resume_fade_frames (the pelvis' travel over
@@ -635,7 +637,7 @@ def _resume(out: Motion, source: Motion, first: int, window: int, rig: Rig, earl
     entries are tried every `stride` frames (about RESUME_RATE a second: a 120 fps take would
     otherwise try 16 times as many pairs), starts only within RESUME_SEARCH of `earliest` (waiting
     longer costs more than the re-entries' Eq. 1 costs differ). Returns the motion, the source frame
-    re-entered at and the fade's first frame."""
+    re-entered at and the fade's frames [start, end)."""
     stride = max(1, round(out.fps / RESUME_RATE))
     latest = min(out.num_frames - window, earliest + round(RESUME_SEARCH * out.fps))
     stop = min(source.num_frames, latest + round(source.fps))  # re-entries a second past the latest start
@@ -667,7 +669,7 @@ def _resume(out: Motion, source: Motion, first: int, window: int, rig: Rig, earl
     pace = np.concatenate([fade_weights(window), np.ones(fade - window)])
     faded, carried = blend_travel(tail, _frames(resumed, 0, fade), fade_weights(fade), pelvis, pace)
     rest = place(resumed.slice(min(fade, resumed.num_frames), resumed.num_frames), 0.0, carried)
-    return _join(out.slice(0, begin), faded, rest), entry, begin
+    return _join(out.slice(0, begin), faded, rest), entry, (begin, begin + fade)
 
 
 # ---------------------------------------------------------------------------------------------

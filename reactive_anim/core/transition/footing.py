@@ -15,16 +15,15 @@ stance) is not held but lifted clear of it, as a step would (_swing_lift): measu
 what the fades slid was such sweeps (docs/measurements.md). The hold runs on until every offset
 is let go (a foot that never lifts keeps it to the end of the motion). A foot stands by ramps,
 not thresholds (see _sliding), so a millimetre's difference in the motion moves the result by
-little. Where a leg cannot reach,
-the offset is capped (MAX_OFFSET) and the foot slides the rest. From the impact to the end of
-the reaction, a foot whose lowest point is under the character's floor (the lowest its feet get
-in its own motion) is also lifted onto it: the ragdoll's soles and the skeleton's toes do not
-quite agree, and toes went centimetres under the floor in transitions. That lift is eased in and
-out over SWING_EASE like the swing's: dropped in the frame a foot rose out of the floor by
-itself, it turned a knee from 1 to 11 rad/s in a frame at C. A hand under the floor
-there is lifted onto it by the arm's IK, as a foot is: a fade between two poses whose hands both
-clear the floor can pass one under it, and a clip cast onto longer arms puts the hands a few cm
-under (docs/measurements.md). Knees a fade puts under the floor cannot be lifted so: with the
+little. Where a leg cannot reach, the offset is capped (MAX_OFFSET) and the foot slides the rest.
+From the impact to the end of the reaction, a foot whose lowest point is under the character's
+floor (the lowest its feet get in its own motion) is also lifted onto it: the ragdoll's soles and
+the skeleton's toes do not quite agree, and toes went centimetres under the floor in transitions.
+That lift is eased in and out over SWING_EASE like the swing's: dropped in the frame a foot rose
+out of the floor by itself, it turned a knee from 1 to 11 rad/s in a frame at C. A hand under the
+floor there is lifted onto it by the arm's IK, as a foot is: a fade between two poses whose hands
+both clear the floor can pass one under it, and a clip cast onto longer arms puts the hands a few
+cm under (docs/measurements.md). Knees a fade puts under the floor cannot be lifted so: with the
 hip and the ankle where they are, a kneeling knee at the bottom of its circle about them can only
 move sideways, by far more than its depth. What is still under the floor after the feet and hands
 (a knee, a head through a fade of a roll, a kneeling clip cast onto longer shins) lifts the whole
@@ -111,14 +110,13 @@ def _hold(
     still_held = False
     reaction = np.zeros(len(pos), dtype=bool)  # the frames lifted out of the floor: first..last - 1
     reaction[1 : last - first + 1] = True  # (after the reaction the motion is its own)
+    ease = max(2, round(SWING_EASE * motion.fps))
     for side in SIDES:
         ankle = joint[f"ankle_{side}"]
         down, slide = _sliding(points[side], floor, motion.fps)
         offset = _offsets(down, np.where(fading[:, None], slide, 0.0), motion.fps, MAX_OFFSET * leg)
-        lift = np.where(reaction, np.maximum(floor - points[side][..., 2].min(axis=1), 0.0), 0.0)
-        lift = _eased(lift, max(2, round(SWING_EASE * motion.fps)))
-        lift[0] = 0.0
-        lift += _swing_lift(points[side] + lift[:, None, None] * UP, offset, fading, floor, motion.fps)
+        lift = _eased_lift(np.where(reaction, np.maximum(floor - points[side][..., 2].min(axis=1), 0.0), 0.0), ease)
+        lift += _swing_lift(points[side] + lift[:, None, None] * UP, offset, fading, floor, ease, motion.fps)
         moves = (np.abs(offset).max(axis=1) > 1e-6) | (lift > 1e-6)
         still_held = still_held or bool(np.abs(offset[-1]).max() > 1e-6)
         if not moves.any():
@@ -214,15 +212,17 @@ def _sliding(points: FloatArray, floor: float, fps: float) -> tuple[FloatArray, 
     return firm[1:].max(axis=1), weight.max(axis=1)[:, None] * slide
 
 
-def _swing_lift(points: FloatArray, offset: FloatArray, fading: BoolArray, floor: float, fps: float) -> FloatArray:
+def _swing_lift(
+    points: FloatArray, offset: FloatArray, fading: BoolArray, floor: float, ease: int, fps: float
+) -> FloatArray:
     """(T,) how far to raise a foot (points (T, P, 3), held by `offset`) that a fade sweeps fast
     along the floor (`fading`: per step into frame 1..T - 1): its lowest point lifted to
     SWING_CLEARANCE over the floor (raised by that much at most) as its speed over the ground
-    passes SWING_SPEED, eased in and out over SWING_EASE. Two sources cross-faded while one swings
-    a foot and the other stands on it carry the foot forward at walking speed but at the standing
-    foot's height: the sweep reads as a skate, and lifted clear it reads as the step it is. The
-    points come already lifted onto the floor (this lift goes on top); row 0 (the frame before)
-    stays."""
+    passes SWING_SPEED, eased in and out over `ease` frames (SWING_EASE). Two sources cross-faded
+    while one swings a foot and the other stands on it carry the foot forward at walking speed but
+    at the standing foot's height: the sweep reads as a skate, and lifted clear it reads as the
+    step it is. The points come already lifted onto the floor (this lift goes on top); row 0 (the
+    frame before) stays."""
     height = points[..., 2]
     high = np.maximum(height[1:], height[:-1])  # the point that stays lowest over a step (a roll is no sweep)
     rows, k = np.arange(len(high)), np.argmin(high, axis=1)
@@ -231,9 +231,15 @@ def _swing_lift(points: FloatArray, offset: FloatArray, fading: BoolArray, floor
     sweeping = np.clip((speed - SWING_SPEED) / SWING_BAND, 0.0, 1.0) * fading
     need = np.zeros(len(points))
     need[1:] = sweeping * np.clip(floor + SWING_CLEARANCE - height[1:].min(axis=1), 0.0, SWING_CLEARANCE)
+    return _eased_lift(need, ease)
+
+
+def _eased_lift(need: FloatArray, ease: int) -> FloatArray:
+    """A foot's lift per frame (T,), at least `need`, eased over `ease` frames (_eased); row 0, the
+    frame before the range, stays. Nothing to lift costs nothing (most frames of most feet)."""
     if need.max() <= 0.0:
         return need
-    lift = _eased(need, max(2, round(SWING_EASE * fps)))
+    lift = _eased(need, ease)
     lift[0] = 0.0
     return lift
 
