@@ -9,6 +9,7 @@ For an impact at B on a playing motion:
       search aligns the windows' first frames; by C the push has carried the body further);
   CD  PD servos track theta_blend from C: the motion the character was playing, faded into the clip
       from E (blend.py), so the body moves toward the clip while physics keeps the hit's momentum;
+      the servos stiffen from BC's gains to CD's over CD_RAMP rather than at once;
   CF  the simulated CD is faded into the clip's E..F (root lerp, joint slerp); at F the pose is the
       clip's (exactly, but for legs that hold a planted foot: see Feet below), and the clip plays on
       from there, placed where the character is.
@@ -62,7 +63,7 @@ from .model.skeleton import Motion, hold_root, static_root
 from .physics.balance import RootAssist
 from .physics.ragdoll import Ragdoll, build_ragdoll
 from .physics.simulate import SimResult, simulate_push, track
-from .physics.workspace import Workspace
+from .physics.workspace import BC_GAINS, Workspace
 from .search.library import Library
 from .search.search import Match, search, search_with_fallback
 from .search.window import (
@@ -87,6 +88,9 @@ DOWN_AHEAD = 0.5  # s after C within which the motion being played reaching the 
 DOWN_HEIGHT = 0.5  # leg lengths: a pelvis this low over the floor sits, kneels or lies (_going_down)
 STILL_KEPT = 0.5  # s of a clip's still tail played before the motion resumes or a get-up begins
 CARRY_TIME = 0.15  # s over which theta_blend lets go of the body's departure at C (blend.carry; measured 0.15-0.25)
+# s over which CD's servos stiffen from BC's gains (simulate.track's ramp): switched on at once they
+# caught a body landing on a foot at C within a frame (docs/measurements.md; measured 0.1-0.25)
+CD_RAMP = 0.15
 # The classes that keep the feet nearest each, nearest first, for a push that keeps its feet whose
 # class the library lacks: the same way with more or fewer steps, then a sway. Not a step the other
 # way (a push from behind does not step back), nor a step for a sway (more than the push called for):
@@ -297,7 +301,8 @@ def react(
     played = carry(_frames(motion, frame_c, steps + 1), before.slice(frame_c, frame_c + 1),
                    round(CARRY_TIME * motion.fps))  # fmt: skip
     target = blend(played, clip_ef, fade_weights(steps + 1))
-    cd = track(ragdoll, bc.state, target, steps / motion.fps, assist=settings.assist, workspace=workspace)
+    cd = track(ragdoll, bc.state, target, steps / motion.fps, assist=settings.assist, ramp=(BC_GAINS, CD_RAMP),
+               workspace=workspace)  # fmt: skip
     clock.lap("cd")
     transition = blend(cd.motion, clip_ef, fade_weights(steps + 1))
     if match is None:  # the motion plays on from F; the reaction ends there

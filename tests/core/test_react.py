@@ -133,9 +133,10 @@ def test_a_pushed_walker_walks_on_once_its_step_has_landed(walk, library, ragdol
     0.6-1.5 s. Before F it may: one of these ten plays a step that comes to a stand within the
     half-second transition, 0.3 s before the walk picks up (the resume starts at F at the earliest;
     starting it as the clip slows cost more seams than it saved stops, in the quality benchmark).
-    At F and at both ends of the resume's fade the pelvis accelerates less than the real walks' and
-    runs' p99 (with the resume fading the pose over its 0.27 s window alone, a stance handed back
-    to the walk lifted the pelvis with 20 m/s^2)."""
+    At C, at F and at both ends of the resume's fade the pelvis accelerates less than the real
+    walks' and runs' p99 (with the resume fading the pose over its 0.27 s window alone, a stance
+    handed back to the walk lifted the pelvis with 20 m/s^2; with CD's servos stiff from C on, not
+    ramped up from BC's, two of these ten went over at C: 17.8 and 16.8 m/s^2)."""
     pelvis, classifier = walk.skeleton.index(ragdoll.roles["pelvis"]), load_classifier()
     floor = bl.lowest_floor(walk, ragdoll.roles)
     fade = resume_fade_frames(max(2, round(library.window * walk.fps / library.fps)), walk.fps)
@@ -154,8 +155,7 @@ def test_a_pushed_walker_walks_on_once_its_step_has_landed(walk, library, ragdol
             assert after_f < 0.2, (frame, sign, r.clip, after_f)
             pelvis_accel = bl.profile(r.motion, ragdoll.roles, floor, start=0).pelvis_accel
             for seam, f in bl.reaction_seams(r, fade).items():
-                if seam != "C":  # the hit's own seam: 2 of these 10 are over (docs/measurements.md)
-                    assert np.nanmax(pelvis_accel[f - 1 : f + 2]) < PELVIS_P99, (frame, sign, r.clip, seam)
+                assert np.nanmax(pelvis_accel[f - 1 : f + 2]) < PELVIS_P99, (frame, sign, r.clip, seam)
             stops.append(bl.longest_still(speed[frame:stop], walk.fps))
     assert max(stops) < 0.4, np.round(stops, 2)
 

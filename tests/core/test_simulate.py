@@ -18,6 +18,7 @@ from reactive_anim.core.model.errors import ImpactError, SimulationError
 from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.physics.ragdoll import build_ragdoll
 from reactive_anim.core.physics.simulate import simulate_impact, state_from_mocap, track
+from reactive_anim.core.physics.workspace import BC_GAINS, CD_GAINS, Workspace, servo_kp
 from tests.support.mocap import REPO, require_mocap
 
 WALK = "bandai_namco/dataset-1/dataset-1_walk_normal_001.bvh"
@@ -176,3 +177,24 @@ def test_sample_walk_simulates_from_its_rest_pose_ragdoll():
     cd = track(ragdoll, bc.state, motion, 0.5, target_start=int(bc.frames[-1]))
     assert bc.motion.num_frames == 15 + 1 and cd.motion.num_frames == 30 + 1
     assert np.all(np.isfinite(cd.motion.local_rot))
+
+
+def test_a_gain_ramp_stiffens_the_servos_from_its_start_gains_to_the_tracking_gains(walk, ragdolls):
+    """CD from a pushed body (BC's end after 120 N·s from behind) with the servos stiffening from
+    BC's gains over 0.15 s (react.CD_RAMP): one frame in, every servo's stiffness lies between
+    BC's and CD's, and the body has moved otherwise than with CD's gains from the start; a run
+    longer than the ramp ends on CD's gains exactly. (That it smooths the seam at C is
+    test_react's walker test and the quality benchmark: with carry's targets, not these.)"""
+    ragdoll = ragdolls["anatomical"]
+    bc = simulate_impact(ragdoll, walk, Impact(START, ragdoll.roles["chest"], (0.0, -1.0, 0.0), 120.0))
+    frame_c = int(bc.frames[-1])
+    workspace = Workspace(ragdoll)
+    soft, stiff = servo_kp(workspace, BC_GAINS), servo_kp(workspace, CD_GAINS)
+    frame = 1.0 / walk.fps
+    ramped = track(ragdoll, bc.state, walk, frame, target_start=frame_c, ramp=(BC_GAINS, 0.15), workspace=workspace)
+    kp = workspace.model.actuator_gainprm[:, 0].copy()
+    assert np.all((soft < kp) & (kp < stiff)), (kp / stiff).round(3)
+    at_once = track(ragdoll, bc.state, walk, frame, target_start=frame_c, workspace=workspace)
+    assert np.abs(ramped.qpos[-1] - at_once.qpos[-1]).max() > 1e-3
+    track(ragdoll, bc.state, walk, 0.2, target_start=frame_c, ramp=(BC_GAINS, 0.15), workspace=workspace)
+    np.testing.assert_array_equal(workspace.model.actuator_gainprm[:, 0], stiff)

@@ -47,6 +47,7 @@ from .workspace import (
     Workspace,
     place_bodies,
     reset_data,
+    servo_kp,
     set_limits,
     set_servos,
     workspace_for,
@@ -183,6 +184,7 @@ class _Plan:
     follow: (S, J, 4) the target's local rotations at the samples, for the joints the output takes
       from the mocap (Ragdoll.leaf_joints).
     assist: the root assist toward the targets' pelvis (balance.py), or None for pure PD.
+    ramp: (gains, seconds): the servos start with these gains and reach `gains` over that time.
     """
 
     targets: FloatArray
@@ -194,6 +196,7 @@ class _Plan:
     clock: float
     follow: FloatArray
     assist: RootAssist | None = None
+    ramp: tuple[ServoGains, float] | None = None
 
 
 def _run(ws: Workspace, start: SimState, plan: _Plan) -> SimResult:
@@ -254,12 +257,15 @@ def _step_and_sample(ws: Workspace, start: SimState, plan: _Plan, watch: Watch) 
     data_ctrl = data.ctrl  # one view on MjData's buffer, not a new wrapper per step
     qpos_arr, qvel_arr = np.empty((len(goals), model.nq)), np.empty((len(goals), model.nv))
     contacts = np.zeros((len(goals), len(ws.ragdoll.bodies)), dtype=bool)
+    ramp = _GainRamp(ws, plan)
     helper = None
     if plan.assist is not None:
         helper = AssistController(plan.assist, model, int(ws.ragdoll.index.body_ids[0]), plan.targets[:, 0:7])
     for n, goal in enumerate(goals):
         while step < goal:
             data_ctrl[:] = ctrl[step]
+            if step < ramp.end and step % ASSIST_STEPS == 0:
+                ramp.apply(step)
             if helper is not None and step % ASSIST_STEPS == 0:
                 helper.apply(data, plan.start_offset + step / frame_steps, plan.fps, start.floor)
             if step == 0:
@@ -282,6 +288,24 @@ def _step_and_sample(ws: Workspace, start: SimState, plan: _Plan, watch: Watch) 
                      qvel=qvel_arr, com=com, com_velocity=com_vel, floor=start.floor, contacts=contacts,
                      first_contact=first, state=end,
                      assist_fraction=0.0 if helper is None else helper.largest_fraction)  # fmt: skip
+
+
+class _GainRamp:
+    """The servos' stiffness raised from plan.ramp's gains to plan.gains' along the quintic
+    smootherstep, set every ASSIST_STEPS steps before `end` (0 without a ramp; the last set is
+    plan.gains' own)."""
+
+    def __init__(self, ws: Workspace, plan: _Plan) -> None:
+        self.ws, self.gains = ws, plan.gains
+        self.steps = 0 if plan.ramp is None else max(1, round(plan.ramp[1] / TIMESTEP))
+        self.end = 0 if plan.ramp is None else self.steps + ASSIST_STEPS
+        start = plan.gains if plan.ramp is None else plan.ramp[0]
+        self.kp0, self.kp1 = servo_kp(ws, start), servo_kp(ws, plan.gains)
+
+    def apply(self, step: int) -> None:
+        s = min(step / self.steps, 1.0)
+        w = s * s * s * (s * (6.0 * s - 15.0) + 10.0)
+        set_servos(self.ws, self.gains, self.kp0 + (self.kp1 - self.kp0) * w)
 
 
 def _first_step(model: mujoco.MjModel, data: mujoco.MjData, hit: tuple[int, Impact] | None, watch: Watch) -> None:
@@ -389,12 +413,16 @@ def track(
     start_frame: float = 0.0,
     gains: ServoGains = CD_GAINS,
     assist: RootAssist | None = None,
+    ramp: tuple[ServoGains, float] | None = None,
     workspace: Workspace | None = None,
 ) -> SimResult:
     """CD: PD tracking (Eq. 2) of `target` from frame `target_start` for `duration` seconds.
 
     assist: a root assist toward the target's pelvis that keeps the body up (balance.py); None
     (default) is the paper's pure PD tracking.
+    ramp: (start gains, seconds): the servos stiffen from the start gains to `gains` over that
+    time (None: `gains` from the first step, the paper's). From BC's weak servos, CD's stiff ones
+    switched on at once catch a body landing on a foot in a frame (react.CD_RAMP).
 
     start: a SimState (e.g. BC's end state) or a Motion, whose frame `start_frame` gives the state.
     Sampled at the target's frame times target_start .. target_start + round(duration * fps); the
@@ -416,6 +444,7 @@ def track(
         clock=target_start / target.fps,
         follow=local_rotations(target, np.arange(target_start, target_start + n + 1)),
         assist=assist,
+        ramp=ramp,
     )
     with workspace_for(ragdoll, workspace) as ws:
         if isinstance(start, Motion):

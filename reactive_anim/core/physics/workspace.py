@@ -113,10 +113,15 @@ def place_bodies(ws: Workspace, held: HeldPose) -> None:
     )
 
 
-def set_servos(ws: Workspace, gains: ServoGains) -> None:
-    """Position-actuator gains kp = stiffness * mass moved, kv = damping_time * kp."""
+def servo_kp(ws: Workspace, gains: ServoGains) -> FloatArray:
+    """(nu,) position-actuator stiffness kp = stiffness * group factor * mass moved."""
+    return gains.stiffness * gains.group_factors()[ws.ragdoll.index.actuator_group] * ws.ragdoll.index.actuator_mass
+
+
+def set_servos(ws: Workspace, gains: ServoGains, kp: FloatArray | None = None) -> None:
+    """Position-actuator gains kp = stiffness * mass moved (or the given kp), kv = damping_time * kp."""
     model = ws.model
-    kp = gains.stiffness * gains.group_factors()[ws.ragdoll.index.actuator_group] * ws.ragdoll.index.actuator_mass
+    kp = servo_kp(ws, gains) if kp is None else kp
     kv = kp * gains.damping_time
     model.actuator_gainprm[:, 0] = kp
     model.actuator_biasprm[:, 0] = 0.0
