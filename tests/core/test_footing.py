@@ -3,7 +3,8 @@
 - A standing body dragged along the floor while the sources cross-fade keeps its feet where they
   stood, up to the hold's limit (beyond it the feet slide the rest, lifted clear of the floor where
   they go fast), and to the end where they never lift; a walker's hold is let go in the air and
-  the walk after it is untouched; a drag outside the fades is the motion's own.
+  the walk after it is untouched; a drag outside the fades is the motion's own; a foot lifting off
+  is not held for its first slow frames (let go, it jumped).
 - Reactions on the sample walk slide their feet less than half as far as without the hold, and
   no foot goes through the floor (without the hold, toes went up to 4 cm under).
 - A hand under the floor is lifted straight up onto it, keeping its turn; a hand already under it
@@ -120,6 +121,28 @@ def test_a_walkers_hold_is_let_go_in_the_air_and_the_walk_after_is_untouched():
     for side in "lr":  # the hold eases out: its last frame is under a millimetre from the motion
         gap = np.linalg.norm(contact_points(held, side)[after - 1] - contact_points(moved, side)[after - 1])
         assert gap <= 2 * CATCH_UP_FINISH / WALK.fps
+
+
+def test_a_foot_lifting_off_is_not_held_for_its_first_slow_frames():
+    """The walk dragged 9 cm over half a second, faded throughout: no foot point accelerates more in
+    the held walk than the fastest in the dragged walk itself (plus 5%). A foot lifting off moves
+    slowly for a frame or two before it swings; held there and let go, it stood still and then
+    jumped (here 162 m/s^2 against the walk's own 80): STAND_AHEAD."""
+    drag = np.zeros_like(WALK.root_pos)
+    drag[:, 0] = np.clip(np.arange(WALK.num_frames) - START, 0, FRAMES) * 0.09 / FRAMES
+    moved = replace(WALK, root_pos=WALK.root_pos + drag)
+    held = hold_feet(moved, RIG, (START, START + FRAMES), [(START, START + FRAMES)], sole(moved))
+    window = slice(START - 2, START + FRAMES + 10)
+    for side in "lr":
+        own, kept = (point_acceleration(m, side)[window].max() for m in (moved, held))
+        assert kept <= 1.05 * own, (side, kept, own)
+
+
+def point_acceleration(motion: Motion, side: str) -> np.ndarray:
+    """(T - 2,) the largest acceleration of a foot's points per frame, from its second frame."""
+    pos, rot = motion.global_transforms()
+    points = foot_points(motion.skeleton, motion.skeleton.index(ROLES[f"ankle_{side}"]), pos, rot)
+    return np.linalg.norm(points[2:] - 2 * points[1:-1] + points[:-2], axis=-1).max(axis=1) * motion.fps**2
 
 
 def test_a_drag_beyond_the_hold_slides_the_feet_by_the_rest():

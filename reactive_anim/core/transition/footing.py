@@ -45,6 +45,10 @@ from .retarget import foot_points, local_rotations, lowest_foot_point
 LOWEST_SCALE = 0.003  # m: a foot point this much higher than its lowest counts 1/e as much for the slide
 SKIM_SPEED = 3.5  # m/s: a point faster than this does not stand, fully below ...
 SPEED_BAND = 1.0  # ... this much slower (a swing foot moves at 3-5 m/s; a blend slides it at 0.5-2.5)
+# s: a point that skims within this much time does not stand now either. A foot lifting off moves
+# slowly for a frame or two, then fast: held in those frames and let go, it stood still, then jumped
+# 15 cm in one frame (a toe at 142 m/s^2 at C, docs/measurements.md)
+STAND_AHEAD = 0.05
 CATCH_UP_RATE = 7.0  # 1/s: in the air an offset shrinks by this fraction a second, smoothly (143 ms time constant) ...
 CATCH_UP_FINISH = 0.05  # m/s: ... and by this much more, so it ends (the last step is under a millimetre)
 SOFT_REACH = 0.95  # of a leg's length: a held foot asking more of it reaches less, smoothly (_eased_reach)
@@ -196,13 +200,17 @@ def _with_limbs(motion: Motion, glob: FloatArray, limbs: list[tuple[list[int], B
 def _sliding(points: FloatArray, floor: float, fps: float) -> tuple[FloatArray, FloatArray]:
     """From a foot's points (T, P, 3), per frame from the second: how much it is on the floor (0..1,
     by height: model/floor.py) and the slide to take back (T - 1, 2), counted as much as the foot
-    stands: on the floor and slow (a swing foot skimming the floor is fast). Ramps rather than
+    stands: on the floor and slow (a swing foot skimming the floor is fast), and staying slow for
+    STAND_AHEAD (a foot lifting off is not held for its first slow frames). Ramps rather than
     thresholds, so a millimetre more or less changes the result by little; a foot rolling from heel
     to toe stands on the point that stays."""
     height = points[..., 2]
     firm = on_floor(height, floor)  # (T, P)
     step = np.diff(points[..., :2], axis=0)  # (T - 1, P, 2)
     slow = np.clip((SKIM_SPEED - np.linalg.norm(step, axis=-1) * fps) / SPEED_BAND, 0.0, 1.0)
+    ahead = round(STAND_AHEAD * fps)  # a foot about to swing does not stand: see STAND_AHEAD
+    slow = np.lib.stride_tricks.sliding_window_view(np.pad(slow, ((0, ahead), (0, 0)), mode="edge"), ahead + 1, 0)
+    slow = slow.min(axis=-1)
     weight = np.minimum(firm[1:], firm[:-1]) * slow
     # The slide is the lowest point's: a point a few millimetres higher (the ball as the heel of a
     # toe-off rises) counts for little, so a roll is not taken for a slide.
