@@ -12,7 +12,8 @@ For an impact at B on a playing motion:
       the servos stiffen from BC's gains to CD's over CD_RAMP rather than at once;
   CF  the simulated CD is faded into the clip's E..F (root lerp, joint slerp); at F the pose is the
       clip's (exactly, but for legs that hold a planted foot: see Feet below), and the clip plays on
-      from there, placed where the character is.
+      from there, placed where the character is. F is C + `transition`; for a fall it may come up
+      to `fall_transition` later, where the clip's pelvis moves most steadily (_calm_end).
 What we add beyond the paper, and why:
 - A clip whose library entry names a `next` clip (a get-up after a fall, paper Fig. 3) is followed
   by it, placed where the fall ends and faded in over `chain_blend`.
@@ -114,6 +115,10 @@ class ReactionSettings:
     reaction_window: BC, seconds of free physics after the hit [0.25, a human reaction time].
     transition: C to F, seconds of PD tracking faded into the clip [0.5: against a third of a second,
       the fade's pops and a walker's stops are fewer (tools/bench.py quality), its feet skid more].
+    fall_transition: for a fall, the longest the transition may run: F is put where the clip's
+      pelvis moves most steadily, from `transition` to this (_calm_end) [0.95: a fade ending as the
+      body lands hands the seam the landing's jolt; at F the pelvis of 58 of 528 reactions, nearly
+      all falls, accelerated more than real walks do 1% of the time: docs/measurements.md].
     profile: the ragdoll's joint profile, "anatomical" or "paper" (physics/anatomy.py) ["anatomical"].
     search_threshold: Eq. 1 cost above which a class's best window passes the search on to the
       next probable class; when none is within it, the most probable class's best window is used
@@ -138,6 +143,7 @@ class ReactionSettings:
     min_probability: float = 0.1
     resume: bool = True
     chain_blend: float = 0.2
+    fall_transition: float = 0.95
     assist: RootAssist | None = field(default_factory=RootAssist)
     hold_feet: bool = True
 
@@ -295,6 +301,8 @@ def react(
         placement = _alignment(at_c, clip_raw.slice(frame_e, frame_e + 1), ragdoll.rig)
         clip = place(clip_raw, *placement)
     steps = max(1, round(settings.transition * motion.fps))
+    if match is not None and is_fall(match.reaction_class) and settings.fall_transition > settings.transition:
+        steps = _calm_end(clip, frame_e, steps, round(settings.fall_transition * motion.fps), ragdoll.rig)
     clip_ef = _frames(clip, frame_e, steps + 1)  # E..F; a clip that ends sooner holds its last pose
     # theta_blend: what the character was playing (an earlier reaction, if one plays), starting from
     # the simulated pose at C (blend.carry), faded into the clip.
@@ -679,6 +687,21 @@ def _resume(
 
 # ---------------------------------------------------------------------------------------------
 # Helpers
+
+
+def _calm_end(clip: Motion, frame_e: int, shortest: int, longest: int, rig: Rig) -> int:
+    """The transition's length in frames, from `shortest` to `longest`, that ends it (F) where the
+    clip's pelvis accelerates least over F and the frames either side of it (on a tie, the
+    shortest): a fade into a fall that ends as the body lands on the floor hands the seam the
+    landing's jolt (ReactionSettings.fall_transition). Frames past the clip's end are not tried."""
+    longest = min(longest, clip.num_frames - 3 - frame_e)
+    first = frame_e + shortest - 2  # the frame before F - 1 at the shortest
+    if longest <= shortest or first < 0:
+        return shortest
+    pelvis = clip.slice(first, frame_e + longest + 3).global_positions()[:, rig.joint("pelvis")]
+    jolt = np.linalg.norm(pelvis[2:] - 2.0 * pelvis[1:-1] + pelvis[:-2], axis=-1)  # F - 1 (shortest) .. F + 1 (longest)
+    around = np.lib.stride_tricks.sliding_window_view(jolt, 3).max(axis=1)  # per F, shortest .. longest
+    return shortest + int(np.argmin(around))
 
 
 def resume_fade_frames(window: int, fps: float) -> int:
