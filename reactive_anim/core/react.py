@@ -36,6 +36,10 @@ What we add beyond the paper, and why:
   (Reaction.kept_motion; its path and timing stay the animator's, later markers land where they
   were put). A push the rule says falls searches the probable classes the library
   has, as before. Either way Reaction.note says what the library lacked and what was done.
+- A push the classifier calls a sway on a character walking (faster than WALKING_SPEED) keeps
+  the walk as a missing class does (above): the sway clips stand where they are, so a nudged
+  walker stopped and fell behind where it would have been (_walk_on; override the class on the
+  marker to play a sway clip anyway).
 - Feet: where the sources cross-fade (C..F, a get-up fading in, the resume), a planted foot keeps
   its footprint instead of sliding from one source's to the other's, and feet and hands that a
   fade or a cast clip puts through the floor are lifted onto it (footing.py).
@@ -106,6 +110,11 @@ NEAR: dict[str, tuple[str, ...]] = {
     "sway_balance": (),
 }
 KEPT_CLIP = "(the original motion)"  # Reaction.clip when the motion was kept
+SWAY = "sway_balance"
+# m/s: the pelvis' pace over the floor in the WALKING_OVER s before the hit above which a push the
+# classifier calls a sway keeps the walk (_walk_on); the shared walks go at 1.1-1.6 m/s
+WALKING_SPEED = 0.6
+WALKING_OVER = 0.25
 
 
 @dataclass(frozen=True)
@@ -174,8 +183,9 @@ class Reaction:
     note: for the animator, why the reaction is not what the push called for (the library lacks
       its class: what it played instead, or that it kept the motion); empty when it is.
     kept_motion (match None): no clip was played: the push keeps its feet and the library has no
-      class that does (NEAR), so CD tracked back to the motion, which plays on unchanged from F
-      (clip KEPT_CLIP, cost 0, no placement); kept_class: the class it stands for then.
+      class that does (NEAR), or it is a sway on a walk (_walk_on), so CD tracked back to the
+      motion, which plays on unchanged from F (clip KEPT_CLIP, cost 0, no placement); kept_class:
+      the class it stands for then.
     timings: seconds per step (bc, classify, search, cd, blend, splice, total).
     """
 
@@ -286,6 +296,8 @@ def react(
     query = _query_ending_at(before, frame_c, casting, impact)
     choice = _search(library, query, impact, probabilities, settings, falling,
                      lambda: _judge(motion, bc, ragdoll, impact))  # fmt: skip
+    if impact.reaction is None and probabilities is not None and CLASS_SLUGS[int(np.argmax(probabilities))] == SWAY:
+        choice = _walk_on(choice, motion, impact, ragdoll.rig)
     match = choice.match
     clock.lap("search")
     if match is None:  # the motion kept: the "clip" is the motion where it is, jumped into at C
@@ -523,6 +535,24 @@ def _search(
     match = search_with_fallback(library, query, likely, settings.search_threshold)
     note = f"the library has no {predicted} clips: played {match.reaction_class} instead" if missing else ""
     return _Choice(match, note)
+
+
+def _walk_on(choice: _Choice, motion: Motion, impact: Impact, rig: Rig) -> _Choice:
+    """A push the classifier calls a sway, on a walk (the pelvis faster than WALKING_SPEED over the
+    floor before the hit): the walk kept, the hit simulated, rather than a sway clip, which stands
+    where it is: a walker nudged from behind stood still and fell 10-29 cm behind its unpushed self
+    within half a second (docs/measurements.md). Anything else as chosen."""
+    if choice.match is None or choice.match.reaction_class != SWAY:
+        return choice
+    b = int(np.floor(impact.frame))
+    a = max(0, b - round(WALKING_OVER * motion.fps))
+    if b == a:
+        return choice
+    ground = motion.slice(a, b + 1).global_positions()[[0, -1], rig.joint("pelvis"), :2]
+    if np.linalg.norm(ground[1] - ground[0]) * motion.fps / (b - a) <= WALKING_SPEED:
+        return choice
+    note = (choice.note + "; " if choice.note else "") + "a sway on a walk: kept the walk, the hit simulated"
+    return _Choice(None, note, SWAY)
 
 
 def _missing_class(

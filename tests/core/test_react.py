@@ -3,6 +3,8 @@ real search. The classifier is not needed here: overrides and the whole-library 
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -158,6 +160,27 @@ def test_a_pushed_walker_walks_on_once_its_step_has_landed(walk, library, ragdol
                 assert np.nanmax(pelvis_accel[f - 1 : f + 2]) < PELVIS_P99, (frame, sign, r.clip, seam)
             stops.append(bl.longest_still(speed[frame:stop], walk.fps))
     assert max(stops) < 0.4, np.round(stops, 2)
+
+
+def test_a_walker_nudged_into_a_sway_walks_on_and_a_stand_sways(walk, library, ragdoll) -> None:
+    """20 N·s on the chest from behind, which the classifier calls a sway: on the sample walk the
+    walk is kept, the hit simulated (the sway clips stand where they are: nudged walkers stood still
+    and fell 10-29 cm behind their unpushed selves), and the pelvis never stands still from the hit
+    to 1.5 s after it; forced to a sway on its marker, the walker plays a sway clip; on the sample
+    idle the same push plays a sway clip."""
+    classifier = load_classifier()
+    pelvis = walk.skeleton.index(ragdoll.roles["pelvis"])
+    nudge = Impact(100, "chest", tuple(forward(walk, 100)), 20.0)
+    kept = react(walk, nudge, library, classifier, ragdoll=ragdoll)
+    assert kept.predicted == "sway_balance" and kept.kept_motion and kept.reaction_class == "sway_balance"
+    assert "kept the walk" in kept.note and kept.motion is not None
+    speed = bl.horizontal_speed(kept.motion.global_positions()[:, pelvis], walk.fps)
+    assert bl.longest_still(speed[100 : 100 + round(1.5 * walk.fps)], walk.fps) == 0.0
+    forced = react(walk, replace(nudge, reaction="sway_balance"), library, classifier, ragdoll=ragdoll)
+    assert not forced.kept_motion and forced.clip.startswith("sway_balance")
+    idle = bvh.read_bvh(REPO / "sample_clips" / "idle.bvh")
+    standing = react(idle, replace(nudge, direction=tuple(forward(idle, 100))), library, classifier)
+    assert not standing.kept_motion and standing.clip.startswith("sway_balance") and standing.note == ""
 
 
 def test_a_fall_s_transition_ends_where_the_clip_moves_steadily(walk, library, ragdoll) -> None:
