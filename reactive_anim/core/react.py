@@ -540,8 +540,9 @@ def _search(
 def _walk_on(choice: _Choice, motion: Motion, impact: Impact, rig: Rig) -> _Choice:
     """A push the classifier calls a sway, on a walk (the pelvis faster than WALKING_SPEED over the
     floor before the hit): the walk kept, the hit simulated, rather than a sway clip, which stands
-    where it is: a walker nudged from behind stood still and fell 10-29 cm behind its unpushed self
-    within half a second (docs/measurements.md). Anything else as chosen."""
+    where it is: walkers nudged from behind stood still and fell 6.6-29.4 cm behind their unpushed
+    selves within half a second (docs/measurements.md). Anything else as chosen. (A sway chosen
+    when the classifier called a sway carries no note: the library has the class.)"""
     if choice.match is None or choice.match.reaction_class != SWAY:
         return choice
     b = int(np.floor(impact.frame))
@@ -551,8 +552,7 @@ def _walk_on(choice: _Choice, motion: Motion, impact: Impact, rig: Rig) -> _Choi
     ground = motion.slice(a, b + 1).global_positions()[[0, -1], rig.joint("pelvis"), :2]
     if np.linalg.norm(ground[1] - ground[0]) * motion.fps / (b - a) <= WALKING_SPEED:
         return choice
-    note = (choice.note + "; " if choice.note else "") + "a sway on a walk: kept the walk, the hit simulated"
-    return _Choice(None, note, SWAY)
+    return _Choice(None, "a sway on a walk: kept the walk, the hit simulated", SWAY)
 
 
 def _missing_class(

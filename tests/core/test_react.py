@@ -165,7 +165,7 @@ def test_a_pushed_walker_walks_on_once_its_step_has_landed(walk, library, ragdol
 def test_a_walker_nudged_into_a_sway_walks_on_and_a_stand_sways(walk, library, ragdoll) -> None:
     """20 N·s on the chest from behind, which the classifier calls a sway: on the sample walk the
     walk is kept, the hit simulated (the sway clips stand where they are: nudged walkers stood still
-    and fell 10-29 cm behind their unpushed selves), and the pelvis never stands still from the hit
+    and fell 6.6-29.4 cm behind their unpushed selves), and the pelvis never stands still from the hit
     to 1.5 s after it; forced to a sway on its marker, the walker plays a sway clip; on the sample
     idle the same push plays a sway clip."""
     classifier = load_classifier()

@@ -42,7 +42,7 @@ from . import scene as demo_scene
 
 REPO = Path(__file__).resolve().parents[2]
 BEFORE = 5  # frames before the hit in the filmstrip's first tile
-LATER = (30, 90)  # frames after F of its last two tiles
+LATER = (30, 90)  # frames after C + the transition of its last two tiles
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -139,10 +139,11 @@ def bake_with_operator(armature: bpy.types.Object) -> None:
 
 
 def filmstrip_rows(scene: bpy.types.Scene, armature: bpy.types.Object, summary: str) -> list[list[render.Tile]]:
-    """Per impact marker: just before the hit, C (end of the free-physics window), F (the transition
-    has reached the clip), then LATER frames after F, seen square to the push so that it goes across
-    the picture. C and F follow from the bake's settings (the operator bakes with the defaults); the
-    class is read from the bake's summary line."""
+    """Per impact marker: just before the hit, C (end of the free-physics window), C + the
+    transition (F, where the transition has reached the clip, but for a fall, whose F may come
+    later: ReactionSettings.fall_transition), then LATER frames after it, seen square to the push
+    so that it goes across the picture. C and the transition follow from the bake's settings (the
+    operator bakes with the defaults); the class is read from the bake's summary line."""
     settings = ReactionSettings()
     fps = scene.render.fps / scene.render.fps_base
     rows = []
@@ -154,7 +155,7 @@ def filmstrip_rows(scene: bpy.types.Scene, armature: bpy.types.Object, summary: 
         label = f"{marker.name} ({found.group(1) if found else '?'})"
         forward, left = markers.facing(armature, b)
         view = markers.view_across(np.array(impacts.impact_data(marker).direction), forward, left)
-        moments = [(b - BEFORE, f"B-{BEFORE}"), (c, "C"), (f, "F")] + [(f + k, f"F+{k / fps:g}s") for k in LATER]
+        moments = [(b - BEFORE, f"B-{BEFORE}"), (c, "C")] + [(f + k, f"C+{(f + k - c) / fps:g}s") for k in (0, *LATER)]
         rows.append(
             [
                 render.Tile(min(frame, scene.frame_end), f"{label} {moment}", (float(view[0]), float(view[1])))

@@ -31,6 +31,7 @@ import numpy as np
 
 from ..model import quat
 from ..model.arrays import BoolArray, FloatArray
+from ..model.ease import smootherstep
 from ..model.errors import SimulationError
 from ..model.impact import Impact
 from ..model.skeleton import Motion
@@ -184,7 +185,7 @@ class _Plan:
     follow: (S, J, 4) the target's local rotations at the samples, for the joints the output takes
       from the mocap (Ragdoll.leaf_joints).
     assist: the root assist toward the targets' pelvis (balance.py), or None for pure PD.
-    ramp: (gains, seconds): the servos start with these gains and reach `gains` over that time.
+    ramp: (gains, seconds): the servos start with these gains' stiffness and reach `gains`' over that time.
     """
 
     targets: FloatArray
@@ -291,21 +292,23 @@ def _step_and_sample(ws: Workspace, start: SimState, plan: _Plan, watch: Watch) 
 
 
 class _GainRamp:
-    """The servos' stiffness raised from plan.ramp's gains to plan.gains' along the quintic
-    smootherstep, set every ASSIST_STEPS steps before `end` (0 without a ramp; the last set is
-    plan.gains' own)."""
+    """The servos' stiffness raised from plan.ramp's gains' to plan.gains' along the smootherstep,
+    set every ASSIST_STEPS steps (the assist's cadence: a few steps apart, the change per set is
+    small) before `end`, 0 without a ramp; the last set is plan.gains' own. The damping stays
+    plan.gains' damping_time times the stiffness throughout."""
 
     def __init__(self, ws: Workspace, plan: _Plan) -> None:
         self.ws, self.gains = ws, plan.gains
         self.steps = 0 if plan.ramp is None else max(1, round(plan.ramp[1] / TIMESTEP))
         self.end = 0 if plan.ramp is None else self.steps + ASSIST_STEPS
-        start = plan.gains if plan.ramp is None else plan.ramp[0]
-        self.kp0, self.kp1 = servo_kp(ws, start), servo_kp(ws, plan.gains)
+        if plan.ramp is not None:
+            self.kp0, self.kp1 = servo_kp(ws, plan.ramp[0]), servo_kp(ws, plan.gains)
 
     def apply(self, step: int) -> None:
-        s = min(step / self.steps, 1.0)
-        w = s * s * s * (s * (6.0 * s - 15.0) + 10.0)
-        set_servos(self.ws, self.gains, self.kp0 + (self.kp1 - self.kp0) * w)
+        if step >= self.steps:
+            set_servos(self.ws, self.gains)
+        else:
+            set_servos(self.ws, self.gains, self.kp0 + (self.kp1 - self.kp0) * smootherstep(step / self.steps))
 
 
 def _first_step(model: mujoco.MjModel, data: mujoco.MjData, hit: tuple[int, Impact] | None, watch: Watch) -> None:
@@ -420,8 +423,8 @@ def track(
 
     assist: a root assist toward the target's pelvis that keeps the body up (balance.py); None
     (default) is the paper's pure PD tracking.
-    ramp: (start gains, seconds): the servos stiffen from the start gains to `gains` over that
-    time (None: `gains` from the first step, the paper's). From BC's weak servos, CD's stiff ones
+    ramp: (start gains, seconds): the servos stiffen from the start gains' stiffness to `gains`' over
+    that time (None: `gains` from the first step, the paper's). From BC's weak servos, CD's stiff ones
     switched on at once catch a body landing on a foot in a frame (react.CD_RAMP).
 
     start: a SimState (e.g. BC's end state) or a Motion, whose frame `start_frame` gives the state.

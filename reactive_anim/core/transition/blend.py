@@ -30,6 +30,7 @@ import numpy as np
 
 from ..model import quat
 from ..model.arrays import FloatArray
+from ..model.ease import smootherstep
 from ..model.errors import SkeletonError
 from ..model.skeleton import Motion, child_in_world, root_child
 from ..search.window import yaw_rotate
@@ -39,16 +40,15 @@ def fade_weights(frames: int) -> FloatArray:
     """(frames,) weights from 0 (first frame) to 1 (last) with zero slope and curvature at both ends."""
     if frames < 2:
         return np.ones(max(frames, 0))
-    s = np.linspace(0.0, 1.0, frames)
-    return s * s * s * (s * (6.0 * s - 15.0) + 10.0)
+    return smootherstep(np.linspace(0.0, 1.0, frames))
 
 
 def carry(motion: Motion, pose: Motion, frames: int) -> Motion:
     """`motion` with its first frame turned into `pose`'s first frame: each joint's turn from the
     one to the other carried on and let go over `frames` frames (1 - fade_weights), after which the
     motion is its own. The root's position stays the motion's. theta_blend starts so from the
-    simulated body at C rather than from the motion it was pushed off: CD's stiff servos, switched
-    on at C, no longer pull the body back toward the unpushed pose in its first frames, and the
+    simulated body at C rather than from the motion it was pushed off: CD's stiff servos, stiffening
+    from C on, no longer pull the body back toward the unpushed pose in its first frames, and the
     motion's own pace comes back once they hold (docs/measurements.md)."""
     delta = quat.mul(quat.conj(motion.local_rot[0]), pose.local_rot[0])
     kept = np.zeros(motion.num_frames)

@@ -45,9 +45,10 @@ from .retarget import foot_points, local_rotations, lowest_foot_point
 LOWEST_SCALE = 0.003  # m: a foot point this much higher than its lowest counts 1/e as much for the slide
 SKIM_SPEED = 3.5  # m/s: a point faster than this does not stand, fully below ...
 SPEED_BAND = 1.0  # ... this much slower (a swing foot moves at 3-5 m/s; a blend slides it at 0.5-2.5)
-# s: a point that skims within this much time does not stand now either. A foot lifting off moves
-# slowly for a frame or two, then fast: held in those frames and let go, it stood still, then jumped
-# 15 cm in one frame (a toe at 142 m/s^2 at C, docs/measurements.md)
+# s: a point stands in a step only if it stays slow for the next round(STAND_AHEAD * fps) steps too
+# (2 at 30 fps, 3 at 60). A foot lifting off moves slowly for a frame or two, then fast: held in
+# those frames and let go, it stood still, then jumped 15 cm in one frame (a toe at 142 m/s^2 at C,
+# docs/measurements.md)
 STAND_AHEAD = 0.05
 CATCH_UP_RATE = 7.0  # 1/s: in the air an offset shrinks by this fraction a second, smoothly (143 ms time constant) ...
 CATCH_UP_FINISH = 0.05  # m/s: ... and by this much more, so it ends (the last step is under a millimetre)
