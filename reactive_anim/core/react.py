@@ -38,7 +38,7 @@ What we add beyond the paper, and why:
   has, as before. Either way Reaction.note says what the library lacked and what was done.
 - A push the classifier calls a sway on a character walking (faster than WALKING_SPEED) keeps
   the walk as a missing class does (above): the sway clips stand where they are, so a nudged
-  walker stopped and fell behind where it would have been (_walk_on; override the class on the
+  walker stopped and fell behind where it would have been (_walking; override the class on the
   marker to play a sway clip anyway).
 - Feet: where the sources cross-fade (C..F, a get-up fading in, the resume), a planted foot keeps
   its footprint instead of sliding from one source's to the other's, and feet and hands that a
@@ -111,10 +111,9 @@ NEAR: dict[str, tuple[str, ...]] = {
 }
 KEPT_CLIP = "(the original motion)"  # Reaction.clip when the motion was kept
 SWAY = "sway_balance"
-# m/s: the pelvis' pace over the floor in the WALKING_OVER s before the hit above which a push the
-# classifier calls a sway keeps the walk (_walk_on); the shared walks go at 1.1-1.6 m/s
+# m/s: the centre of mass's pace over the floor at the hit (unpushed) above which a push the
+# classifier calls a sway keeps the walk (_search, _walking); the shared walks go at 1.1-1.6 m/s
 WALKING_SPEED = 0.6
-WALKING_OVER = 0.25
 
 
 @dataclass(frozen=True)
@@ -183,7 +182,7 @@ class Reaction:
     note: for the animator, why the reaction is not what the push called for (the library lacks
       its class: what it played instead, or that it kept the motion); empty when it is.
     kept_motion (match None): no clip was played: the push keeps its feet and the library has no
-      class that does (NEAR), or it is a sway on a walk (_walk_on), so CD tracked back to the
+      class that does (NEAR), or it is a sway on a walk (_walking), so CD tracked back to the
       motion, which plays on unchanged from F (clip KEPT_CLIP, cost 0, no placement); kept_class:
       the class it stands for then.
     timings: seconds per step (bc, classify, search, cd, blend, splice, total).
@@ -295,9 +294,7 @@ def react(
     clock.lap("classify")
     query = _query_ending_at(before, frame_c, casting, impact)
     choice = _search(library, query, impact, probabilities, settings, falling,
-                     lambda: _judge(motion, bc, ragdoll, impact))  # fmt: skip
-    if impact.reaction is None and probabilities is not None and CLASS_SLUGS[int(np.argmax(probabilities))] == SWAY:
-        choice = _walk_on(choice, motion, impact, ragdoll.rig)
+                     lambda: _judge(motion, bc, ragdoll, impact), _walking(bc))  # fmt: skip
     match = choice.match
     clock.lap("search")
     if match is None:  # the motion kept: the "clip" is the motion where it is, jumped into at C
@@ -504,9 +501,11 @@ def _search(
     settings: ReactionSettings,
     falling: str | None = None,
     rule: Callable[[], Outcome] | None = None,
+    walking: bool = False,
 ) -> _Choice:
-    """The override's class alone; a body going down, the rule's fall and then the other falls; else
-    the probable classes in order (search_with_fallback). When the library lacks the predicted class
+    """The override's class alone; a body going down, the rule's fall and then the other falls; a sway
+    while `walking` (_walking), the walk kept; else the probable classes in order
+    (search_with_fallback). When the library lacks the predicted class
     (or, with no classifier, has only falls), `rule` (the outcome rule's verdict, asked only then)
     decides: see _missing_class."""
     if impact.reaction is not None:
@@ -517,6 +516,8 @@ def _search(
         falls = [falling] + [slug for slug in order if is_fall(slug) and slug != falling]
         return _Choice(search_with_fallback(library, query, falls, settings.search_threshold))
     predicted = None if probabilities is None else order[0]
+    if predicted == SWAY and walking:  # the sway clips stand where they are: the walk is kept
+        return _Choice(None, "a sway on a walk: kept the walk, the hit simulated", SWAY)
     have = library.class_ranges
     missing = predicted not in have if predicted is not None else not any(not is_fall(s) for s in have)
     if missing and rule is not None:
@@ -537,22 +538,14 @@ def _search(
     return _Choice(match, note)
 
 
-def _walk_on(choice: _Choice, motion: Motion, impact: Impact, rig: Rig) -> _Choice:
-    """A push the classifier calls a sway, on a walk (the pelvis faster than WALKING_SPEED over the
-    floor before the hit): the walk kept, the hit simulated, rather than a sway clip, which stands
-    where it is: walkers nudged from behind stood still and fell 6.6-29.4 cm behind their unpushed
-    selves within half a second (docs/measurements.md). Anything else as chosen. (A sway chosen
-    when the classifier called a sway carries no note: the library has the class.)"""
-    if choice.match is None or choice.match.reaction_class != SWAY:
-        return choice
-    b = int(np.floor(impact.frame))
-    a = max(0, b - round(WALKING_OVER * motion.fps))
-    if b == a:
-        return choice
-    ground = motion.slice(a, b + 1).global_positions()[[0, -1], rig.joint("pelvis"), :2]
-    if np.linalg.norm(ground[1] - ground[0]) * motion.fps / (b - a) <= WALKING_SPEED:
-        return choice
-    return _Choice(None, "a sway on a walk: kept the walk, the hit simulated", SWAY)
+def _walking(bc: SimResult) -> bool:
+    """Whether the character was walking (or running) when hit: its centre of mass, unpushed, going
+    faster than WALKING_SPEED over the floor. A push the classifier calls a sway then keeps the walk,
+    the hit simulated, rather than playing a sway clip, which stands where it is: walkers nudged from
+    behind stood still and fell 6.6-29.4 cm behind their unpushed selves within half a second
+    (docs/measurements.md)."""
+    twin = bc.unpushed if bc.unpushed is not None else bc
+    return float(np.linalg.norm(twin.com_velocity[0, :2])) > WALKING_SPEED
 
 
 def _missing_class(
