@@ -644,20 +644,26 @@ def _resume_or_hold(
     chained) that starts at a frame from `earliest` on (default: the last `window` frames of `out`;
     see _resume), re-entering at a frame from `first` to a second past where the fade starts (the
     resumed motion stays near the timeline's own time: a walk repeats within a second, and later
-    markers still land where the animator put them); else hold the last pose. Either way the result
+    markers still land where the animator put them) and leaving the source two fades' frames to
+    play; else hold the last pose. Either way the result
     runs at least to the source's end (a re-entry up to a second ahead ends that much sooner: the
     last pose is held). Also returns the source's frame it re-entered at (None: held) and the
     fade's frames [a, b) (none when held)."""
     earliest = out.num_frames - window if earliest is None else max(0, min(earliest, out.num_frames - window))
-    resumed_at, fade = None, []
-    if window and min(source.num_frames, out.num_frames + round(source.fps)) - first > window:
+    resumed_at, fades = None, []
+    # a re-entry leaves the source its fade and as long again to play: one nearer its end faded into
+    # its last pose, repeated, and a runner froze mid-stride as the fade ended (a toe stopped dead at
+    # 216 m/s^2); a fade into a run that stops as it ends is no better than holding the clip's stand
+    fade = resume_fade_frames(window, source.fps)
+    latest_entry = min(source.num_frames - 2 * fade, out.num_frames + round(source.fps) - window)
+    if window and latest_entry > first:
         out, resumed_at, faded = _resume(out, source, first, window, rig, earliest)
-        fade = [faded]
+        fades = [faded]
     missing = source.num_frames - out.num_frames  # a bake never shortens the action
     if missing > 0:
         hold = out.slice(out.num_frames - 1, out.num_frames)
         out = _join(out, *([hold] * missing))
-    return out, resumed_at, fade
+    return out, resumed_at, fades
 
 
 def _resume(
@@ -682,6 +688,7 @@ def _resume(
     span = max(2, round(window / stride))
     wp, wq = joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS)
     windows = Windows.of(candidates, np.arange(max(0, candidates.num_frames - span + 1)), span)
+    fade = resume_fade_frames(window, out.fps)
     tried: list[tuple[float, int, int]] = [(np.inf, out.num_frames - window, first)]
     for k in range((latest - earliest) // stride + 1):
         start = earliest + k * stride
@@ -689,7 +696,8 @@ def _resume(
         if wait >= min(tried)[0]:
             break  # Eq. 1 costs are never negative: no later start can win
         query = Query(tails.rows(slice(k, k + span)))
-        last = min(stop, start + round(source.fps)) - window  # re-entries up to a second past the start
+        # re-entries up to a second past the start that leave the source two fades (_resume_or_hold)
+        last = min(stop - 2 * fade, start + round(source.fps) - window)
         entries = min((last - first) // stride + 1, candidates.num_frames - span + 1)
         if entries <= 0 or query.window < span:
             continue
@@ -697,7 +705,6 @@ def _resume(
         j = int(np.argmin(costs))
         tried.append((float(costs[j]) + wait, start, first + j * stride))
     _, begin, entry = min(tried)  # on an exact tie, the earliest start and re-entry
-    fade = resume_fade_frames(window, out.fps)
     tail = _frames(out, begin, fade)
     yaw, offset = _alignment(tail.slice(0, 1), source.slice(entry, entry + 1), rig)
     resumed = place(source.slice(entry, source.num_frames), yaw, offset)

@@ -162,6 +162,29 @@ def test_a_pushed_walker_walks_on_once_its_step_has_landed(walk, library, ragdol
     assert max(stops) < 0.4, np.round(stops, 2)
 
 
+def test_near_the_take_s_end_the_walk_resumes_moving_or_not_at_all(walk, library, ragdoll) -> None:
+    """Pushes in the walk's last 1.5 s: a walk that resumes plays on through its fade and as long
+    again after it, every frame moving (react._resume_or_hold); one re-entered nearer its end faded
+    into its last pose, repeated, and the walker froze mid-stride as the fade ended (on a short
+    real run, a toe stopped dead at 216 m/s^2). Too near the end, the clip's own end is held."""
+    fade = resume_fade_frames(max(2, round(library.window * walk.fps / library.fps)), walk.fps)
+    held = resumed = 0
+    for frame in range(walk.num_frames - 90, walk.num_frames - 15, 15):
+        for sign in (1.0, -1.0):
+            r = react(walk, Impact(frame, "chest", tuple(sign * forward(walk, frame)), 40.0,
+                                   reaction="step_forward" if sign > 0 else "step_back"),
+                      library, ragdoll=ragdoll)  # fmt: skip
+            assert r.motion is not None
+            if r.resumed_at is None:
+                held += 1
+                continue
+            resumed += 1
+            fade_start = r.end_frame + 1 - fade
+            moves = np.abs(np.diff(r.motion.root_pos[fade_start : r.end_frame + 1 + fade], axis=0)).max(axis=1)
+            assert moves.min() > 1e-4, (frame, sign, r.clip, r.resumed_at, np.flatnonzero(moves <= 1e-4) + fade_start)
+    assert held and resumed, (held, resumed)
+
+
 def test_a_walker_nudged_into_a_sway_walks_on_and_a_stand_sways(walk, library, ragdoll) -> None:
     """20 N·s on the chest from behind, which the classifier calls a sway: on the sample walk the
     walk is kept, the hit simulated (the sway clips stand where they are: nudged walkers stood still
