@@ -58,9 +58,9 @@ import numpy as np
 
 from .classify.capture import foot_bodies
 from .classify.features import Body, FeatureReader
-from .classify.outcome import COLLAPSE_HEIGHT, Outcome, collapsing, judge
+from .classify.outcome import COLLAPSE_HEIGHT, SIDE_ANGLE, Outcome, collapsing, judge
 from .model.arrays import FloatArray
-from .model.classes import CLASS_SLUGS, is_fall
+from .model.classes import CLASS_SLUGS, CLASSES, is_fall
 from .model.errors import Cancelled, ImpactError, LibraryError, SkeletonError
 from .model.impact import Impact
 from .model.rig import Rig
@@ -114,6 +114,9 @@ SWAY = "sway_balance"
 # m/s: the centre of mass's pace over the floor at the hit (unpushed) above which a push the
 # classifier calls a sway keeps the walk (_search, _walking); the shared walks go at 1.1-1.6 m/s
 WALKING_SPEED = 0.6
+# a class's way over the floor in the facing frame (forward, left): _against_push
+WAYS = {"forward": np.array([1.0, 0.0]), "backward": np.array([-1.0, 0.0]),
+        "left": np.array([0.0, 1.0]), "right": np.array([0.0, -1.0])}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -294,7 +297,8 @@ def react(
     clock.lap("classify")
     query = _query_ending_at(before, frame_c, casting, impact)
     choice = _search(library, query, impact, probabilities, settings, falling,
-                     lambda: _judge(motion, bc, ragdoll, impact), _walking(bc))  # fmt: skip
+                     lambda: _judge(motion, bc, ragdoll, impact), _walking(bc),
+                     _against_push(motion, impact, ragdoll.rig))  # fmt: skip
     match = choice.match
     clock.lap("search")
     if match is None:  # the motion kept: the "clip" is the motion where it is, jumped into at C
@@ -502,9 +506,11 @@ def _search(
     falling: str | None = None,
     rule: Callable[[], Outcome] | None = None,
     walking: bool = False,
+    against: frozenset[str] = frozenset(),
 ) -> _Choice:
-    """The override's class alone; a body going down, the rule's fall and then the other falls; a sway
-    while `walking` (_walking), the walk kept; else the probable classes in order
+    """The override's class alone; a body going down, the rule's fall and then the other falls; else
+    the classifier's classes, those going `against` the push (_against_push) left out, in order: a
+    sway while `walking` (_walking), the walk kept; else the probable classes
     (search_with_fallback). When the library lacks the predicted class
     (or, with no classifier, has only falls), `rule` (the outcome rule's verdict, asked only then)
     decides: see _missing_class."""
@@ -515,9 +521,14 @@ def _search(
     if falling is not None:
         falls = [falling] + [slug for slug in order if is_fall(slug) and slug != falling]
         return _Choice(search_with_fallback(library, query, falls, settings.search_threshold))
+    chance = {} if probabilities is None else dict(zip(CLASS_SLUGS, map(float, probabilities), strict=True))
+    turned = ""
+    if probabilities is not None and order[0] in against:
+        turned = f"the classifier's {order[0]} goes against the push; "
+        order = [slug for slug in order if slug not in against]
     predicted = None if probabilities is None else order[0]
     if predicted == SWAY and walking:  # the sway clips stand where they are: the walk is kept
-        return _Choice(None, "a sway on a walk: kept the walk, the hit simulated", SWAY)
+        return _Choice(None, turned + "a sway on a walk: kept the walk, the hit simulated", SWAY)
     have = library.class_ranges
     missing = predicted not in have if predicted is not None else not any(not is_fall(s) for s in have)
     if missing and rule is not None:
@@ -526,16 +537,33 @@ def _search(
             return choice
     if probabilities is None:
         return _Choice(search(library, query, None, settings.search_threshold))
-    likely = [
-        slug for slug, p in zip(order, np.sort(probabilities)[::-1], strict=True) if p >= settings.min_probability
-    ]
+    likely = [slug for slug in order if chance[slug] >= settings.min_probability]
     if not any(slug in library.class_ranges for slug in likely):
         likely = [slug for slug in order if slug in library.class_ranges][:1]
     if not likely:
         raise LibraryError("the library has no usable class for this reaction")
     match = search_with_fallback(library, query, likely, settings.search_threshold)
     note = f"the library has no {predicted} clips: played {match.reaction_class} instead" if missing else ""
+    if turned:
+        note = turned + (note or f"played {match.reaction_class}")
     return _Choice(match, note)
+
+
+def _against_push(motion: Motion, impact: Impact, rig: Rig) -> frozenset[str]:
+    """The classes whose body goes against the push: their way (forward, backward, left, right)
+    within outcome.SIDE_ANGLE of the opposite of the push's direction over the floor, in the facing
+    at the impact. The classifier learnt its labels from BC against its unpushed twin, whose contacts
+    can answer a push by moving the other way: a walker hit in the chest from the front at 40 N·s was
+    given a step forward with certainty (docs/measurements.md). A class that goes sideways to the
+    push, a sway and the side fall are never against it."""
+    frame = min(round(impact.frame), motion.num_frames - 1)
+    heading = float(frame_features(motion.slice(frame, frame + 1), rig).heading[0])
+    push = yaw_rotate(-heading, np.array([impact.direction[0], impact.direction[1], 0.0]))[:2]
+    norm = float(np.linalg.norm(push))
+    if norm == 0.0:
+        return frozenset()
+    limit = -np.cos(np.radians(SIDE_ANGLE))
+    return frozenset(c.slug for c in CLASSES if c.way in WAYS and float(WAYS[c.way] @ push) / norm < limit)
 
 
 def _walking(bc: SimResult) -> bool:
