@@ -162,6 +162,38 @@ def test_a_pushed_walker_walks_on_once_its_step_has_landed(walk, library, ragdol
     assert max(stops) < 0.4, np.round(stops, 2)
 
 
+@pytest.mark.parametrize(
+    ("take", "frame", "bone", "side", "strength"),
+    [
+        ("bandai_namco/dataset-1/dataset-1_walk_normal_001.bvh", 68, "pelvis", "front", 40.0),
+        ("bandai_namco/dataset-2/dataset-2_walk_normal_002.bvh", 172, "chest", "left", 40.0),
+        ("bandai_namco/dataset-2/dataset-2_walk_normal_002.bvh", 172, "pelvis", "right", 40.0),
+        ("bandai_namco/dataset-1/dataset-1_respond_normal_001.bvh", 37, "pelvis", "behind", 300.0),
+    ],
+)
+def test_no_fade_slides_a_planted_foot_more_than_5_cm(library, take, frame, bone, side, strength) -> None:
+    """The pushes whose fades slid a planted foot furthest in the quality benchmark (6.6-8.8 cm,
+    before a foot the hold could not keep still was lifted from 0.4 m/s rather than 1 m/s): in the
+    C-F fade and the resume's, no foot planted as the fade starts slides more than 5 cm before it
+    lifts (the issue's goal)."""
+    motion = bvh.read_bvh(require_mocap(take))
+    ragdoll = character_ragdoll(motion)
+    ahead, left = ground_axes(motion, frame, ragdoll.roles)
+    direction = {"behind": ahead, "front": -ahead, "left": -left, "right": left}[side]
+    r = react(motion, Impact(frame, ragdoll.roles[bone], tuple(direction), strength), library, load_classifier(),
+              ragdoll=ragdoll)  # fmt: skip
+    assert r.motion is not None
+    prof = bl.profile(r.motion, ragdoll.roles, bl.lowest_floor(motion, ragdoll.roles), start=0)
+    fade = resume_fade_frames(max(2, round(library.window * motion.fps / library.fps)), motion.fps)
+    seams = bl.reaction_seams(r, fade)
+    fades = [(r.frame_c, r.frame_f + 1)]
+    if "resume start" in seams:
+        fades.append((seams["resume start"], seams["resume end"]))
+    for a, b in fades:
+        slides = [bl.planted_slide(prof.skid[:, k], prof.down[:, k], a, b, motion.fps) for k in range(2)]
+        assert max(slides) <= 0.05, (r.reaction_class, a, b, np.round(slides, 3))
+
+
 def test_near_the_take_s_end_the_walk_resumes_moving_or_not_at_all(walk, library, ragdoll) -> None:
     """Pushes in the walk's last 1.5 s: a walk that resumes plays on through its fade and as long
     again after it, every frame moving (react._resume_or_hold); one re-entered nearer its end faded
