@@ -509,7 +509,8 @@ def _search(
     against: frozenset[str] = frozenset(),
 ) -> _Choice:
     """The override's class alone; a body going down, the rule's fall and then the other falls; else
-    the classifier's classes, those going `against` the push (_against_push) left out, in order: a
+    the classifier's classes (without one, the whole library), those going `against` the push
+    (_against_push) left out, in order: a
     sway while `walking` (_walking), the walk kept; else the probable classes
     (search_with_fallback). When the library lacks the predicted class
     (or, with no classifier, has only falls), `rule` (the outcome rule's verdict, asked only then)
@@ -535,8 +536,9 @@ def _search(
         choice = _missing_class(library, query, predicted, rule(), settings)
         if choice is not None:
             return choice
-    if probabilities is None:
-        return _Choice(search(library, query, None, settings.search_threshold))
+    if probabilities is None:  # the whole library, but for the classes going against the push
+        allowed = [slug for slug in have if slug not in against]
+        return _Choice(search(library, query, allowed if against and allowed else None, settings.search_threshold))
     likely = [slug for slug in order if chance[slug] >= settings.min_probability]
     if not any(slug in library.class_ranges for slug in likely):
         likely = [slug for slug in order if slug in library.class_ranges][:1]
