@@ -22,8 +22,8 @@ from reactive_anim.core.physics.balance import RootAssist
 from reactive_anim.core.physics.mjcf import TIMESTEP
 from reactive_anim.core.physics.ragdoll import build_ragdoll
 from reactive_anim.core.physics.simulate import SimState, simulate_impact, state_from_mocap, track
-from reactive_anim.core.physics.workspace import Workspace
-from reactive_anim.core.react import ReactionSettings
+from reactive_anim.core.physics.workspace import BC_GAINS, Workspace
+from reactive_anim.core.react import CD_RAMP, ReactionSettings
 from tools.devkit.mocap import MOCAP, REPO, mocap_files
 from tools.devkit.tracking import kept_up_seconds
 
@@ -151,7 +151,7 @@ def _bench_impact_physics() -> None:
     def physics() -> None:
         first = simulate_impact(ragdoll, motion, impact, window=settings.reaction_window, workspace=workspace)
         track(ragdoll, first.state, motion, duration, target_start=target_start, assist=settings.assist,
-              workspace=workspace)  # fmt: skip
+              ramp=(BC_GAINS, CD_RAMP), workspace=workspace)  # fmt: skip
 
     start = state_from_mocap(ragdoll, motion, impact.frame, workspace=workspace)
     runs = [(start, round(settings.reaction_window / TIMESTEP)), (bc.state, round(duration / TIMESTEP))]
