@@ -349,7 +349,10 @@ def react(
         end_frame + 1 if resumed_at is not None or match is None else out.num_frames,
     )
     if settings.hold_feet:
-        fades = [(frame_c, frame_c + steps + 1), *chain_fade, *resume_fade]
+        # BC too: the ragdoll's soles creep under a push (a standing foot 5 cm under a side push at
+        # 40 N·s), and a standing foot is held there as where the sources cross-fade
+        hit = (int(np.ceil(impact.frame)), frame_c)
+        fades = [hit, (frame_c, frame_c + steps + 1), *chain_fade, *resume_fade]
         out = lift_onto_floor(hold_feet(out, ragdoll.rig, reacting, fades, casting.sole), reacting, casting.sole)
     ground_root = static_root(source or motion)
     if ground_root is not None:

@@ -5,7 +5,8 @@ steps, the clip faded in over C..F (blend.py), the original motion faded back in
 two sources cross-fade while a foot is on the floor, the foot slides from one footprint to the
 other; the fade slides a standing foot far more than the simulation does (docs/measurements.md).
 
-Where the sources cross-fade (`fades`: C..F, a chained get-up fading in, the resume), the part of
+Where the sources cross-fade (`fades`: C..F, a chained get-up fading in, the resume; react.py also
+passes B..C, where the ragdoll's soles creep under the push), the part of
 a standing foot's motion along the floor is taken back by an offset, which the leg's two-bone IK
 adds to the ankle (the foot keeps its orientation). Outside the fades the motion's own steps play
 as they are (a clip's or a get-up's drawn-up heel is meant to slide) and the offset is only carried:
