@@ -58,7 +58,7 @@ import numpy as np
 
 from .classify.capture import foot_bodies
 from .classify.features import Body, FeatureReader
-from .classify.outcome import COLLAPSE_HEIGHT, SIDE_ANGLE, Outcome, collapsing, judge
+from .classify.outcome import COLLAPSE_HEIGHT, Outcome, collapsing, judge, way
 from .model.arrays import FloatArray
 from .model.classes import CLASS_SLUGS, CLASSES, is_fall
 from .model.errors import Cancelled, ImpactError, LibraryError, SkeletonError
@@ -89,6 +89,10 @@ RESUME_RATE = 30.0  # fade starts and re-entries tried per second (_resume)
 RESUME_SEARCH = 1.0  # s after the earliest fade start within which the fade may start (_resume)
 # s the resume fades the pose over; the pelvis' travel fades over the re-entry's Eq. 1 window (_resume)
 RESUME_FADE = 0.4
+# fades' worth of the source a re-entry leaves to play (_resume_or_hold, _resume): one nearer its end
+# faded into its last pose, repeated, and a runner froze mid-stride as the fade ended (a toe stopped
+# dead at 216 m/s^2); a fade into a run that stops as it ends is no better than the clip's stand
+RESUME_LEFT = 2
 DOWN_AHEAD = 0.5  # s after C within which the motion being played reaching the floor counts (_going_down)
 DOWN_HEIGHT = 0.5  # leg lengths: a pelvis this low over the floor sits, kneels or lies (_going_down)
 STILL_KEPT = 0.5  # s of a clip's still tail played before the motion resumes or a get-up begins
@@ -114,9 +118,6 @@ SWAY = "sway_balance"
 # m/s: the centre of mass's pace over the floor at the hit (unpushed) above which a push the
 # classifier calls a sway keeps the walk (_search, _walking); the shared walks go at 1.1-1.6 m/s
 WALKING_SPEED = 0.6
-# a class's way over the floor in the facing frame (forward, left): _against_push
-WAYS = {"forward": np.array([1.0, 0.0]), "backward": np.array([-1.0, 0.0]),
-        "left": np.array([0.0, 1.0]), "right": np.array([0.0, -1.0])}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -349,10 +350,9 @@ def react(
         end_frame + 1 if resumed_at is not None or match is None else out.num_frames,
     )
     if settings.hold_feet:
-        # BC too: the ragdoll's soles creep under a push (a standing foot 5 cm under a side push at
-        # 40 N·s), and a standing foot is held there as where the sources cross-fade
-        hit = (int(np.ceil(impact.frame)), frame_c)
-        fades = [hit, (frame_c, frame_c + steps + 1), *chain_fade, *resume_fade]
+        # from B, not C: the ragdoll's soles creep under a push (a standing foot 5 cm under a side
+        # push at 40 N·s), and a standing foot is held in BC as where the sources cross-fade
+        fades = [(int(np.ceil(impact.frame)), frame_c + steps + 1), *chain_fade, *resume_fade]
         out = lift_onto_floor(hold_feet(out, ragdoll.rig, reacting, fades, casting.sole), reacting, casting.sole)
     ground_root = static_root(source or motion)
     if ground_root is not None:
@@ -555,20 +555,19 @@ def _search(
 
 
 def _against_push(motion: Motion, impact: Impact, rig: Rig) -> frozenset[str]:
-    """The classes whose body goes against the push: their way (forward, backward, left, right)
-    within outcome.SIDE_ANGLE of the opposite of the push's direction over the floor, in the facing
-    at the impact. The classifier learnt its labels from BC against its unpushed twin, whose contacts
-    can answer a push by moving the other way: a walker hit in the chest from the front at 40 N·s was
-    given a step forward with certainty (docs/measurements.md). A class that goes sideways to the
-    push, a sway and the side fall are never against it."""
+    """The classes whose body goes against the push: their way (forward, backward, left, right) is
+    the way of the push's opposite over the floor, in the facing at the impact (outcome.way). The
+    classifier learnt its labels from BC against its unpushed twin, whose contacts can answer a push
+    by moving the other way: a walker hit in the chest from the front at 40 N·s was given a step
+    forward with certainty (docs/measurements.md). A class that goes sideways to the push, a sway
+    and the side fall are never against it."""
     frame = min(round(impact.frame), motion.num_frames - 1)
     heading = float(frame_features(motion.slice(frame, frame + 1), rig).heading[0])
     push = yaw_rotate(-heading, np.array([impact.direction[0], impact.direction[1], 0.0]))[:2]
-    norm = float(np.linalg.norm(push))
-    if norm == 0.0:
+    if not push.any():  # straight down: no way over the floor
         return frozenset()
-    limit = -np.cos(np.radians(SIDE_ANGLE))
-    return frozenset(c.slug for c in CLASSES if c.way in WAYS and float(WAYS[c.way] @ push) / norm < limit)
+    against = way(-push)
+    return frozenset(c.slug for c in CLASSES if c.way == against)
 
 
 def _walking(bc: SimResult) -> bool:
@@ -684,11 +683,8 @@ def _resume_or_hold(
     fade's frames [a, b) (none when held)."""
     earliest = out.num_frames - window if earliest is None else max(0, min(earliest, out.num_frames - window))
     resumed_at, fades = None, []
-    # a re-entry leaves the source its fade and as long again to play: one nearer its end faded into
-    # its last pose, repeated, and a runner froze mid-stride as the fade ended (a toe stopped dead at
-    # 216 m/s^2); a fade into a run that stops as it ends is no better than holding the clip's stand
-    fade = resume_fade_frames(window, source.fps)
-    latest_entry = min(source.num_frames - 2 * fade, out.num_frames + round(source.fps) - window)
+    left = RESUME_LEFT * resume_fade_frames(window, out.fps)  # the source's frames a re-entry leaves
+    latest_entry = min(source.num_frames - left, out.num_frames + round(source.fps) - window)
     if window and latest_entry > first:
         out, resumed_at, faded = _resume(out, source, first, window, rig, earliest)
         fades = [faded]
@@ -729,8 +725,8 @@ def _resume(
         if wait >= min(tried)[0]:
             break  # Eq. 1 costs are never negative: no later start can win
         query = Query(tails.rows(slice(k, k + span)))
-        # re-entries up to a second past the start that leave the source two fades (_resume_or_hold)
-        last = min(stop - 2 * fade, start + round(source.fps) - window)
+        # re-entries up to a second past the start that leave the source RESUME_LEFT fades
+        last = min(stop - RESUME_LEFT * fade, start + round(source.fps) - window)
         entries = min((last - first) // stride + 1, candidates.num_frames - span + 1)
         if entries <= 0 or query.window < span:
             continue

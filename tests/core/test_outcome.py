@@ -144,7 +144,7 @@ def test_steps_grow_with_the_excess_up_to_the_infinite_step_limit():
 
 
 def _sector(degrees: float) -> str:
-    return outcome._direction(np.array([math.cos(math.radians(degrees)), math.sin(math.radians(degrees))]))
+    return outcome.way(np.array([math.cos(math.radians(degrees)), math.sin(math.radians(degrees))]))
 
 
 def test_the_direction_sectors_are_45_degrees_either_side_of_the_facing_axis():

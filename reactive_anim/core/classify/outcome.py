@@ -148,13 +148,15 @@ def judge(body: Body, state: ReactionState, window: float = REACTION_WINDOW, *, 
     steps = None if falls else _steps_to_capture(excess, omega, body.leg_length, window)
     frame = state.facing(body)[:2, :2]
     local = frame @ shift
-    direction = _direction(local)
+    direction = way(local)
     speed = float(state.com_velocity[:2] @ shift / norm) if norm > 0.0 else 0.0
     reaction = _reaction(steps, direction, speed, body.leg_length)
     return Outcome(reaction, steps, direction, local, excess, speed, state.support.down, sinking)
 
 
-def _direction(local: FloatArray) -> str:
+def way(local: FloatArray) -> str:
+    """Where a horizontal vector in the facing frame (forward, left) points: "forward" or "backward"
+    within SIDE_ANGLE of the facing axis, else "left" or "right" (a class's way: model/classes.py)."""
     angle = math.degrees(math.atan2(abs(local[1]), local[0]))  # 0 ahead .. 180 behind
     if angle <= SIDE_ANGLE:
         return "forward"
