@@ -33,13 +33,14 @@ What we add beyond the paper, and why:
   gets a fall: it plays the nearest class the library has that keeps them (NEAR: the same way, more
   or fewer steps, a sway), and with none of those it keeps the motion it was playing: BC's hit,
   then CD tracks back to that motion and fades into it by F, from where it plays on unchanged
-  (Reaction.kept_motion; its path and timing stay the animator's, later markers land where they
-  were put). A push the rule says falls searches the probable classes the library
-  has, as before. Either way Reaction.note says what the library lacked and what was done.
-- A push the classifier calls a sway on a character walking (faster than WALKING_SPEED) keeps
-  the walk as a missing class does (above): the sway clips stand where they are, so a nudged
-  walker stopped and fell behind where it would have been (_walking; override the class on the
-  marker to play a sway clip anyway).
+  (Reaction.kept_motion; its timing stays the animator's, later markers land where they were put;
+  a walk is moved over the floor by the push's gain at C, _gain, a stand stays where it was). A
+  push the rule says falls searches the probable classes the library has, as before. Either way
+  Reaction.note says what the library lacked and what was done.
+- A push the classifier calls a sway, or a single step the way the character goes, on a character
+  walking (faster than WALKING_SPEED) keeps the walk as a missing class does (above): the sway and
+  step clips start and end standing, so a nudged walker stopped and fell behind where it would
+  have been (_walking; override the class on the marker to play a clip anyway).
 - Feet: where the sources cross-fade (C..F, a get-up fading in, the resume), a planted foot keeps
   its footprint instead of sliding from one source's to the other's, and feet and hands that a
   fade or a cast clip puts through the floor are lifted onto it (footing.py).
@@ -58,7 +59,7 @@ import numpy as np
 
 from .classify.capture import foot_bodies
 from .classify.features import Body, FeatureReader
-from .classify.outcome import COLLAPSE_HEIGHT, Outcome, collapsing, judge, way
+from .classify.outcome import COLLAPSE_HEIGHT, STEP_CLASSES, Outcome, collapsing, judge, way
 from .model.arrays import FloatArray
 from .model.classes import CLASS_SLUGS, CLASSES, is_fall
 from .model.errors import Cancelled, ImpactError, LibraryError, SkeletonError
@@ -116,8 +117,11 @@ NEAR: dict[str, tuple[str, ...]] = {
 KEPT_CLIP = "(the original motion)"  # Reaction.clip when the motion was kept
 SWAY = "sway_balance"
 # m/s: the centre of mass's pace over the floor at the hit (unpushed) above which a push the
-# classifier calls a sway keeps the walk (_search, _walking); the shared walks go at 1.1-1.6 m/s
+# classifier calls a sway, or a single step the way the walker goes, keeps the walk (_search,
+# _walking); the shared walks go at 1.1-1.6 m/s
 WALKING_SPEED = 0.6
+# Per way a walker goes, the single step that way: the walker's own next step (_walking)
+WALK_ON = {way: steps[0] for way, steps in STEP_CLASSES.items()}
 
 
 @dataclass(frozen=True)
@@ -297,13 +301,15 @@ def react(
     falling = None if impact.reaction is not None else _going_down(motion, bc, ragdoll, impact, library)
     clock.lap("classify")
     query = _query_ending_at(before, frame_c, casting, impact)
+    heading = _heading(motion, impact, ragdoll.rig)
+    walking = _walking(bc, heading)
     choice = _search(library, query, impact, probabilities, settings, falling,
-                     lambda: _judge(motion, bc, ragdoll, impact), _walking(bc),
-                     _against_push(motion, impact, ragdoll.rig))  # fmt: skip
+                     lambda: _judge(motion, bc, ragdoll, impact), walking, _against_push(impact, heading))  # fmt: skip
     match = choice.match
     clock.lap("search")
-    if match is None:  # the motion kept: the "clip" is the motion where it is, jumped into at C
-        clip, frame_e, placement = motion, frame_c, (0.0, (0.0, 0.0))
+    if match is None:  # the motion kept: the "clip" is the motion, jumped into at C; a walk moved by the push
+        placement = (0.0, _gain(bc) if walking is not None else (0.0, 0.0))
+        clip, frame_e = place(motion, *placement), frame_c
     else:
         clip_raw = casting.clip(match.clip, motion.fps)
         # E: the window's last frame on the character's clock (a clip resampled to a frame rate such
@@ -318,9 +324,10 @@ def react(
     if match is not None and is_fall(match.reaction_class) and settings.fall_transition > settings.transition:
         steps = _calm_end(clip, frame_e, steps, round(settings.fall_transition * motion.fps), ragdoll.rig)
     clip_ef = _frames(clip, frame_e, steps + 1)  # E..F; a clip that ends sooner holds its last pose
-    # theta_blend: what the character was playing (an earlier reaction, if one plays), starting from
-    # the simulated pose at C (blend.carry), faded into the clip.
-    played = carry(_frames(motion, frame_c, steps + 1), before.slice(frame_c, frame_c + 1),
+    # theta_blend: what the character was playing (an earlier reaction, if one plays; a kept walk where
+    # the push moved it), starting from the simulated pose at C (blend.carry), faded into the clip.
+    playing = motion if match is not None else clip
+    played = carry(_frames(playing, frame_c, steps + 1), before.slice(frame_c, frame_c + 1),
                    round(CARRY_TIME * motion.fps))  # fmt: skip
     target = blend(played, clip_ef, fade_weights(steps + 1))
     cd = track(ragdoll, bc.state, target, steps / motion.fps, assist=settings.assist, ramp=(BC_GAINS, CD_RAMP),
@@ -508,31 +515,33 @@ def _search(
     settings: ReactionSettings,
     falling: str | None = None,
     rule: Callable[[], Outcome] | None = None,
-    walking: bool = False,
+    walking: str | None = None,
     against: frozenset[str] = frozenset(),
 ) -> _Choice:
     """The override's class alone; a body going down, the rule's fall and then the other falls; else
-    the classifier's classes (without one, the whole library), those going `against` the push
-    (_against_push) left out, in order: a
-    sway while `walking` (_walking), the walk kept; else the probable classes
-    (search_with_fallback). When the library lacks the predicted class
-    (or, with no classifier, has only falls), `rule` (the outcome rule's verdict, asked only then)
-    decides: see _missing_class."""
+    the classifier's classes (without one, the whole library); either way those going `against` the
+    push (_against_push) left out, in order: a sway or the walker's own next step while `walking`
+    (_walking), the walk kept; else the probable classes (search_with_fallback). When the library
+    lacks the predicted class (or, with no classifier, has only falls), `rule` (the outcome rule's
+    verdict, asked only then) decides: see _missing_class."""
     if impact.reaction is not None:
         return _Choice(search(library, query, [impact.reaction], settings.search_threshold))
     ranked = range(len(CLASS_SLUGS)) if probabilities is None else np.argsort(-probabilities, kind="stable")
     order = [CLASS_SLUGS[k] for k in ranked]
     if falling is not None:
         falls = [falling] + [slug for slug in order if is_fall(slug) and slug != falling]
-        return _Choice(search_with_fallback(library, query, falls, settings.search_threshold))
+        with_push = [slug for slug in falls if slug not in against]
+        match = search_with_fallback(library, query, with_push or falls, settings.search_threshold)
+        turned = f"the outcome rule's {falling} goes against the push; played {match.reaction_class}"
+        return _Choice(match, turned if falling in against and with_push else "")
     chance = {} if probabilities is None else dict(zip(CLASS_SLUGS, map(float, probabilities), strict=True))
     turned = ""
     if probabilities is not None and order[0] in against:
         turned = f"the classifier's {order[0]} goes against the push; "
         order = [slug for slug in order if slug not in against]
     predicted = None if probabilities is None else order[0]
-    if predicted == SWAY and walking:  # the sway clips stand where they are: the walk is kept
-        return _Choice(None, turned + "a sway on a walk: kept the walk, the hit simulated", SWAY)
+    if walking is not None and predicted in (SWAY, WALK_ON[walking]):  # the clips stand: the walk is kept
+        return _Choice(None, turned + f"{_spoken(predicted)} on a walk: kept the walk, the hit simulated", predicted)
     have = library.class_ranges
     missing = predicted not in have if predicted is not None else not any(not is_fall(s) for s in have)
     if missing and rule is not None:
@@ -554,15 +563,19 @@ def _search(
     return _Choice(match, note)
 
 
-def _against_push(motion: Motion, impact: Impact, rig: Rig) -> frozenset[str]:
+def _heading(motion: Motion, impact: Impact, rig: Rig) -> float:
+    """The character's facing at the impact (window.py's heading)."""
+    frame = min(round(impact.frame), motion.num_frames - 1)
+    return float(frame_features(motion.slice(frame, frame + 1), rig).heading[0])
+
+
+def _against_push(impact: Impact, heading: float) -> frozenset[str]:
     """The classes whose body goes against the push: their way (forward, backward, left, right) is
     the way of the push's opposite over the floor, in the facing at the impact (outcome.way). The
     classifier learnt its labels from BC against its unpushed twin, whose contacts can answer a push
     by moving the other way: a walker hit in the chest from the front at 40 N·s was given a step
     forward with certainty (docs/measurements.md). A class that goes sideways to the push, a sway
     and the side fall are never against it."""
-    frame = min(round(impact.frame), motion.num_frames - 1)
-    heading = float(frame_features(motion.slice(frame, frame + 1), rig).heading[0])
     push = yaw_rotate(-heading, np.array([impact.direction[0], impact.direction[1], 0.0]))[:2]
     if not push.any():  # straight down: no way over the floor
         return frozenset()
@@ -570,14 +583,31 @@ def _against_push(motion: Motion, impact: Impact, rig: Rig) -> frozenset[str]:
     return frozenset(c.slug for c in CLASSES if c.way == against)
 
 
-def _walking(bc: SimResult) -> bool:
-    """Whether the character was walking (or running) when hit: its centre of mass, unpushed, going
-    faster than WALKING_SPEED over the floor. A push the classifier calls a sway then keeps the walk,
-    the hit simulated, rather than playing a sway clip, which stands where it is: walkers nudged from
-    behind stood still and fell 6.6-29.4 cm behind their unpushed selves within half a second
-    (docs/measurements.md)."""
+def _walking(bc: SimResult, heading: float) -> str | None:
+    """The way the character was walking (or running) when hit, in its facing (outcome.way), or None
+    when it was not: its centre of mass, unpushed, going faster than WALKING_SPEED over the floor. A
+    push the classifier calls a sway, or a single step the way the walker goes, then keeps the walk
+    (WALK_ON), the hit simulated, rather than playing a clip that starts and ends standing: walkers
+    nudged from behind stood still and fell 6.6-29.4 cm behind their unpushed selves within half a
+    second with a sway clip, up to 25 cm with a step clip (docs/measurements.md)."""
     twin = bc.unpushed if bc.unpushed is not None else bc
-    return float(np.linalg.norm(twin.com_velocity[0, :2])) > WALKING_SPEED
+    velocity = twin.com_velocity[0, :2]
+    if float(np.linalg.norm(velocity)) <= WALKING_SPEED:
+        return None
+    return way(yaw_rotate(-heading, np.append(velocity, 0.0))[:2])
+
+
+def _gain(bc: SimResult) -> tuple[float, float]:
+    """How far the push has moved the body over the floor by C: the pushed centre of mass less its
+    unpushed twin's. A kept walk is moved by it, so the walker goes on from where the push put it
+    (a walker pushed from behind stays ahead of its unpushed self) instead of being pulled back."""
+    twin = bc.unpushed if bc.unpushed is not None else bc
+    gain = bc.com[-1, :2] - twin.com[-1, :2]
+    return float(gain[0]), float(gain[1])
+
+
+def _spoken(slug: str) -> str:
+    return "a " + slug.replace("_", " ").replace("balance", "").strip()
 
 
 def _missing_class(

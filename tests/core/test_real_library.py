@@ -216,6 +216,11 @@ def _sample_library(folder: Path, classes: tuple[str, ...]) -> Library:
     return _library(folder, clips, [{"file": SAMPLE / c["file"]} for c in manifest["chain"]])
 
 
+@pytest.fixture(scope="module")
+def sample_idle() -> Motion:
+    return bvh.read_bvh(SAMPLE / "idle.bvh")
+
+
 @pytest.mark.parametrize(
     ("have", "push", "played", "note"),
     [
@@ -226,16 +231,18 @@ def _sample_library(folder: Path, classes: tuple[str, ...]) -> Library:
     ],
 )
 def test_a_push_that_keeps_its_feet_plays_the_nearest_class_that_does(
-    tmp_path, sample_walk, sample_ragdoll, classifier, have, push, played, note
+    tmp_path, sample_walk, sample_ragdoll, sample_idle, classifier, have, push, played, note
 ) -> None:
-    """A light push on the sample walk (40 N·s: the classifier and the rule say a single step) with
-    a library that lacks its class: the same way with more steps, or a sway, if the library has one
-    (never a step the other way, never a fall), else the walk is kept; the note says which."""
+    """A push the classifier and the rule call a single step, with a library that lacks its class:
+    the same way with more steps, or a sway, if the library has one (never a step the other way,
+    never a fall), else the motion is kept; the note says which. From the front: the sample walk at
+    40 N·s. From behind: the sample idle at 60 N·s (a walker pushed from behind into a single step
+    keeps its walk whatever the library has: test_react.py)."""
     library = _sample_library(tmp_path / "lib", FALLS + have)
-    ahead = ground_axes(sample_walk, SAMPLE_B)[0]
+    motion, strength, ragdoll = (sample_idle, 60.0, None) if push == "behind" else (sample_walk, 40.0, sample_ragdoll)
+    ahead = ground_axes(motion, SAMPLE_B)[0]
     direction = ahead if push == "behind" else -ahead
-    r = react(sample_walk, Impact(SAMPLE_B, "chest", tuple(direction), 40.0), library, classifier,
-              ragdoll=sample_ragdoll)  # fmt: skip
+    r = react(motion, Impact(SAMPLE_B, "chest", tuple(direction), strength), library, classifier, ragdoll=ragdoll)
     assert r.predicted == ("step_forward" if push == "behind" else "step_back")
     assert r.note.startswith(note), r.note
     if played is None:
@@ -250,12 +257,13 @@ def test_a_push_that_falls_still_falls_and_a_library_with_the_class_is_unchanged
     """A push the library has the class for is searched as before, with no note (the sample
     library's results are unchanged); a hard shove with a falls-only library still falls."""
     falls_only = _sample_library(tmp_path / "falls", FALLS)
-    ahead = tuple(ground_axes(sample_walk, SAMPLE_B)[0])
-    shove = react(sample_walk, Impact(SAMPLE_B, "chest", ahead, 300.0), falls_only, classifier, ragdoll=sample_ragdoll)
+    ahead = ground_axes(sample_walk, SAMPLE_B)[0]
+    shove = react(sample_walk, Impact(SAMPLE_B, "chest", tuple(ahead), 300.0), falls_only, classifier,
+                  ragdoll=sample_ragdoll)  # fmt: skip
     assert shove.reaction_class.startswith("fall_") and not shove.kept_motion and shove.note == ""
     full = load_library(SAMPLE, cache_dir=tmp_path / "cache")
-    nudge = react(sample_walk, Impact(SAMPLE_B, "chest", ahead, 40.0), full, classifier, ragdoll=sample_ragdoll)
-    assert nudge.reaction_class == nudge.predicted == "step_forward" and nudge.note == "" and not nudge.kept_motion
+    nudge = react(sample_walk, Impact(SAMPLE_B, "chest", tuple(-ahead), 40.0), full, classifier, ragdoll=sample_ragdoll)
+    assert nudge.reaction_class == nudge.predicted == "step_back" and nudge.note == "" and not nudge.kept_motion
 
 
 def test_without_a_classifier_a_falls_only_library_keeps_a_nudged_walk(tmp_path, sample_walk, sample_ragdoll):
