@@ -58,7 +58,7 @@ from typing import Protocol
 import numpy as np
 
 from .classify.capture import foot_bodies
-from .classify.features import Body, FeatureReader
+from .classify.features import FeatureReader, feature_rig
 from .classify.outcome import COLLAPSE_HEIGHT, STEP_CLASSES, Outcome, collapsing, judge, way
 from .model.arrays import FloatArray
 from .model.classes import CLASS_SLUGS, CLASSES, is_fall
@@ -644,31 +644,31 @@ def _going_down(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact,
     rules"); a body lying on the floor was given a sway and stood up."""
     if not any(is_fall(slug) for slug in library.class_ranges):
         return None
-    body = Body.of(ragdoll.rig)
+    rig = feature_rig(ragdoll.rig)
     on_floor = np.delete(bc.contacts[-1], foot_bodies(ragdoll)).any()
-    low = bc.com[-1][2] - bc.floor < COLLAPSE_HEIGHT * body.leg_length
-    played_down = low and _played_down(motion, int(bc.frames[-1]), body, bc.floor)
-    if not (on_floor or played_down or collapsing(body, bc.com[-1], bc.com_velocity[-1], bc.floor)):
+    low = bc.com[-1][2] - bc.floor < COLLAPSE_HEIGHT * rig.leg_length
+    played_down = low and _played_down(motion, int(bc.frames[-1]), rig, bc.floor)
+    if not (on_floor or played_down or collapsing(rig, bc.com[-1], bc.com_velocity[-1], bc.floor)):
         return None
     return _judge(motion, bc, ragdoll, impact, going_down=played_down).reaction
 
 
-def _played_down(motion: Motion, frame_c: int, body: Body, floor: float) -> bool:
+def _played_down(motion: Motion, frame_c: int, rig: Rig, floor: float) -> bool:
     """Whether the motion being played sits, kneels or lies within DOWN_AHEAD of C: an earlier
     fall still playing. A push during it lands on a body already low; the ragdoll bouncing off the
     floor in BC can be rising at C (a walk pushed into a backward sit, pushed again as it went
     down: 0.49 m at +0.7 m/s) and was judged a step that stood the falling body up."""
     first = min(frame_c, motion.num_frames - 1)  # C past the motion's end: its last pose holds
     ahead = motion.slice(first, min(first + round(DOWN_AHEAD * motion.fps) + 1, motion.num_frames))
-    pelvis = ahead.global_positions()[:, body.joints["pelvis"], 2]
-    return bool(pelvis.min() - floor < DOWN_HEIGHT * body.leg_length)
+    pelvis = ahead.global_positions()[:, rig.joints["pelvis"], 2]
+    return bool(pelvis.min() - floor < DOWN_HEIGHT * rig.leg_length)
 
 
 def _judge(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact, *, going_down: bool = False) -> Outcome:
     """The outcome rule's verdict on the simulated state at C (outcome.judge)."""
     reader = FeatureReader(ragdoll)
     window = (bc.frames[-1] - impact.frame) / motion.fps
-    return judge(reader.body, reader.simulated(motion, bc), window, going_down=going_down)
+    return judge(reader.rig, reader.simulated(motion, bc), window, going_down=going_down)
 
 
 def _chain(
@@ -702,21 +702,22 @@ def _still_from(library: Library, clip_index: int, fps: float) -> int:
 def _resume_or_hold(
     out: Motion, source: Motion, first: int, window: int, rig: Rig, earliest: int | None = None
 ) -> tuple[Motion, int | None, list[tuple[int, int]]]:
-    """Resume the source over a `window`-frame fade (0: do not resume, as after a fall with nothing
-    chained) that starts at a frame from `earliest` on (default: the last `window` frames of `out`;
-    see _resume), re-entering at a frame from `first` to a second past where the fade starts (the
-    resumed motion stays near the timeline's own time: a walk repeats within a second, and later
-    markers still land where the animator put them) and leaving the source two fades' frames to
-    play; else hold the last pose. Either way the result
-    runs at least to the source's end (a re-entry up to a second ahead ends that much sooner: the
-    last pose is held). Also returns the source's frame it re-entered at (None: held) and the
-    fade's frames [a, b) (none when held)."""
+    """Resume the source over a fade of resume_fade_frames (`window` frames or more, computed here and
+    passed to _resume; `window` 0: do not resume, as after a fall with nothing chained) that starts
+    at a frame from `earliest` on (default: the last `window` frames of `out`; see _resume),
+    re-entering at a frame from `first` to a second past where the fade starts (the resumed motion
+    stays near the timeline's own time: a walk repeats within a second, and later markers still
+    land where the animator put them) and leaving the source two fades' frames to play; else hold
+    the last pose. Either way the result runs at least to the source's end (a re-entry up to a
+    second ahead ends that much sooner: the last pose is held). Also returns the source's frame it
+    re-entered at (None: held) and the fade's frames [a, b) (none when held)."""
     earliest = out.num_frames - window if earliest is None else max(0, min(earliest, out.num_frames - window))
     resumed_at, fades = None, []
-    left = RESUME_LEFT * resume_fade_frames(window, out.fps)  # the source's frames a re-entry leaves
+    fade = resume_fade_frames(window, out.fps)
+    left = RESUME_LEFT * fade  # the source's frames a re-entry leaves
     latest_entry = min(source.num_frames - left, out.num_frames + round(source.fps) - window)
     if window and latest_entry > first:
-        out, resumed_at, faded = _resume(out, source, first, window, rig, earliest)
+        out, resumed_at, faded = _resume(out, source, first, window, fade, rig, earliest)
         fades = [faded]
     missing = source.num_frames - out.num_frames  # a bake never shortens the action
     if missing > 0:
@@ -726,12 +727,12 @@ def _resume_or_hold(
 
 
 def _resume(
-    out: Motion, source: Motion, first: int, window: int, rig: Rig, earliest: int
+    out: Motion, source: Motion, first: int, window: int, fade: int, rig: Rig, earliest: int
 ) -> tuple[Motion, int, tuple[int, int]]:
     """The source's best re-entry window (Eq. 1, at source frames from `first` to a second past the
     fade's start) aligned with `out`'s `window` frames from the best fade start (from `earliest` to
-    the last `window` frames), faded in from there over resume_fade_frames (the pelvis' travel over
-    `window` frames: blend_travel) and played on. The fade
+    the last `window` frames), faded in from there over `fade` frames (resume_fade_frames; the pelvis'
+    travel over `window` frames: blend_travel) and played on. The fade
     start weighs in: each second the reaction goes on past `earliest` costs RESUME_WAIT (a pushed
     walker whose step has landed walks on rather than standing through the clip's recovery, while
     a stand resumes where the clip has come to rest, which matches it far better). Starts and
@@ -747,7 +748,6 @@ def _resume(
     span = max(2, round(window / stride))
     wp, wq = joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS)
     windows = Windows.of(candidates, np.arange(max(0, candidates.num_frames - span + 1)), span)
-    fade = resume_fade_frames(window, out.fps)
     tried: list[tuple[float, int, int]] = [(np.inf, out.num_frames - window, first)]
     for k in range((latest - earliest) // stride + 1):
         start = earliest + k * stride

@@ -20,9 +20,9 @@ from reactive_anim.core.classify.capture import Support
 from reactive_anim.core.classify.features import (
     EXTENDED_FEATURES,
     PAPER_FEATURES,
-    Body,
     FeatureReader,
     ReactionState,
+    feature_rig,
     mirrored,
     reaction_features,
     select,
@@ -94,11 +94,11 @@ def test_features_do_not_depend_on_yaw_or_ground_offset(clips):
     """Random yaws and offsets (the ground up to 2 m up or down) leave every feature as it was."""
     motion, reader = clips["walk"]
     state = pushed(motion, reader, "chest", "left")
-    original = reaction_features(reader.body, state)
+    original = reaction_features(reader.rig, state)
     rng = np.random.default_rng(3)
     for _ in range(20):
         offset = rng.uniform([-50.0, -50.0, -2.0], [50.0, 50.0, 2.0])
-        moved = reaction_features(reader.body, turned(state, rng.uniform(-np.pi, np.pi), offset))
+        moved = reaction_features(reader.rig, turned(state, rng.uniform(-np.pi, np.pi), offset))
         np.testing.assert_allclose(moved, original, atol=EXACT)
 
 
@@ -106,9 +106,9 @@ def test_a_turned_and_moved_walk_pushed_the_same_way_gives_the_same_features(cli
     """End to end: the walk turned 90 degrees and moved 3 m (and 0.4 m up, floor and all), pushed
     on the same bone in the same direction relative to the character."""
     motion, reader = clips["walk"]
-    original = reaction_features(reader.body, pushed(motion, reader, "chest", "forward"))
+    original = reaction_features(reader.rig, pushed(motion, reader, "chest", "forward"))
     copy = turned_motion(motion, np.pi / 2, np.array([3.0, -2.0, 0.4]))
-    moved = reaction_features(reader.body, pushed(copy, reader, "chest", "forward"))
+    moved = reaction_features(reader.rig, pushed(copy, reader, "chest", "forward"))
     np.testing.assert_allclose(moved, original, atol=SIMULATED)
 
 
@@ -119,10 +119,10 @@ def test_pushes_from_behind_and_from_the_front_give_opposite_forward_features(cl
     displacements too on the standing idle, where the body does not walk on)."""
     motion, reader = clips[clip]
     ahead = dict(
-        zip(EXTENDED_FEATURES, reaction_features(reader.body, pushed(motion, reader, "chest", "forward")), strict=True)
+        zip(EXTENDED_FEATURES, reaction_features(reader.rig, pushed(motion, reader, "chest", "forward")), strict=True)
     )
     behind = dict(
-        zip(EXTENDED_FEATURES, reaction_features(reader.body, pushed(motion, reader, "chest", "back")), strict=True)
+        zip(EXTENDED_FEATURES, reaction_features(reader.rig, pushed(motion, reader, "chest", "back")), strict=True)
     )
     for name in ("dev_x", "dev_vx", "xcom_dx", "xcom_cos"):
         assert ahead[name] > 0 > behind[name], (name, ahead[name], behind[name])
@@ -136,10 +136,10 @@ def test_pushes_from_behind_and_from_the_front_give_opposite_forward_features(cl
 def test_pushes_to_the_left_and_to_the_right_give_opposite_sideways_features(clips, clip):
     motion, reader = clips[clip]
     left = dict(
-        zip(EXTENDED_FEATURES, reaction_features(reader.body, pushed(motion, reader, "pelvis", "left")), strict=True)
+        zip(EXTENDED_FEATURES, reaction_features(reader.rig, pushed(motion, reader, "pelvis", "left")), strict=True)
     )
     right = dict(
-        zip(EXTENDED_FEATURES, reaction_features(reader.body, pushed(motion, reader, "pelvis", "right")), strict=True)
+        zip(EXTENDED_FEATURES, reaction_features(reader.rig, pushed(motion, reader, "pelvis", "right")), strict=True)
     )
     for name in ("pelvis_dy", "com_dy", "dev_y", "dev_vy", "xcom_dy"):
         assert left[name] > 0 > right[name], (name, left[name], right[name])
@@ -147,13 +147,13 @@ def test_pushes_to_the_left_and_to_the_right_give_opposite_sideways_features(cli
     assert left["xcom_sin"] > abs(left["xcom_cos"]) and right["xcom_sin"] > abs(right["xcom_cos"])
 
 
-def mirror_of(state: ReactionState, body: Body) -> ReactionState:
+def mirror_of(state: ReactionState, rig: Rig) -> ReactionState:
     """The state in a left-right mirror: every point's y negated, each left joint swapped with its right."""
     flip = np.array([1.0, -1.0, 1.0])
     swap = np.arange(len(state.positions_b))
-    for role, j in body.joints.items():
-        if role.endswith("_l") and role[:-2] + "_r" in body.joints:
-            k = body.joints[role[:-2] + "_r"]
+    for role, j in rig.joints.items():
+        if role.endswith("_l") and role[:-2] + "_r" in rig.joints:
+            k = rig.joints[role[:-2] + "_r"]
             swap[j], swap[k] = k, j
     support = Support(state.support.points * flip[:2], state.support.radius, state.support.down)
     return replace(
@@ -175,9 +175,9 @@ def test_a_mirrored_push_has_the_mirrored_features(clips, clip, role, towards):
     features are exactly `mirrored` of the original's (and they differ: the push has a side)."""
     motion, reader = clips[clip]
     state = pushed(motion, reader, role, towards)
-    features = reaction_features(reader.body, state)
+    features = reaction_features(reader.rig, state)
     np.testing.assert_allclose(
-        reaction_features(reader.body, mirror_of(state, reader.body)), mirrored(features), atol=EXACT
+        reaction_features(reader.rig, mirror_of(state, reader.rig)), mirrored(features), atol=EXACT
     )
     assert np.abs(mirrored(features) - features).max() > 1e-3
 
@@ -188,7 +188,7 @@ def test_down_says_whether_a_body_other_than_the_feet_is_on_the_floor(clips):
     down = EXTENDED_FEATURES.index("down")
     for touching in (False, True):
         support = Support(state.support.points, state.support.radius, touching)
-        assert reaction_features(reader.body, replace(state, support=support))[down] == float(touching)
+        assert reaction_features(reader.rig, replace(state, support=support))[down] == float(touching)
 
 
 def test_a_motion_that_carries_on_has_no_departure(clips):
@@ -196,7 +196,7 @@ def test_a_motion_that_carries_on_has_no_departure(clips):
     where the body at B carried on would be (within 2 % of a leg length), the XCoM too."""
     motion, reader = clips["idle"]
     features = dict(
-        zip(EXTENDED_FEATURES, reaction_features(reader.body, reader.captured(motion, 100, 0.25)), strict=True)
+        zip(EXTENDED_FEATURES, reaction_features(reader.rig, reader.captured(motion, 100, 0.25)), strict=True)
     )
     for name in ("dev_x", "dev_y", "dev_z", "xcom_dx", "xcom_dy"):
         assert abs(features[name]) < 0.02, (name, features[name])
@@ -217,4 +217,4 @@ def test_a_skeleton_without_the_roles_is_refused(clips):
     roles = dict(reader.ragdoll.roles)
     del roles["chest"]
     with pytest.raises(SkeletonError, match="chest"):
-        Body.of(Rig(motion.skeleton, roles))
+        feature_rig(Rig(motion.skeleton, roles))

@@ -16,18 +16,25 @@ import pytest
 
 from reactive_anim.core.classify import outcome
 from reactive_anim.core.classify.capture import Support, convex_hull, nearest_in_polygon
-from reactive_anim.core.classify.features import Body, ReactionState
+from reactive_anim.core.classify.features import ReactionState
 from reactive_anim.core.classify.outcome import COLLAPSE_HEIGHT, judge
+from reactive_anim.core.model.rig import Rig
+from reactive_anim.core.model.skeleton import Skeleton
 
 LEG = 0.9
-JOINTS = {"pelvis": 0, "chest": 1, "head": 2, "hip_l": 3, "hip_r": 4, "shoulder_l": 5, "shoulder_r": 6}
+ROLES = ("pelvis", "chest", "head", "hip_l", "hip_r", "shoulder_l", "shoulder_r")  # POSE's rows
 POSE = np.array(
     [[0, 0, 0.95], [0, 0, 1.3], [0, 0, 1.6], [0, 0.1, 0.9], [0, -0.1, 0.9], [0, 0.2, 1.4], [0, -0.2, 1.4]], dtype=float
 )
 FEET = np.array([[-0.05, 0.1], [0.15, 0.1], [-0.05, -0.1], [0.15, -0.1]], dtype=np.float64)
 SOLE_RADIUS = 0.04
 COM = np.array([0.0, 0.0, 1.0])
-BODY = Body(joints=JOINTS, leg_length=LEG)
+# The rig stands in POSE, with a knee and an ankle straight below each hip (the rule reads neither;
+# they give the rig its leg length, LEG): joints named by their roles.
+PARENTS = np.array([-1, 0, 1, 0, 0, 1, 1, 3, 4, 7, 8], dtype=np.int64)
+REST = np.vstack([POSE, POSE[3:5] - [0.0, 0.0, LEG / 2], POSE[3:5] - [0.0, 0.0, LEG]])
+NAMES = [*ROLES, "knee_l", "knee_r", "ankle_l", "ankle_r"]
+RIG = Rig(Skeleton(NAMES, PARENTS, REST - np.vstack([[0.0, 0.0, 0.0], REST[PARENTS[1:]]])), {n: n for n in NAMES})
 OMEGA = math.sqrt(9.81 / 1.0)
 
 
@@ -57,15 +64,15 @@ def turned(s: ReactionState, yaw: float) -> ReactionState:
 
 
 def test_at_rest_the_character_sways():
-    assert judge(BODY, state()).reaction == "sway_balance"
-    assert judge(BODY, state()).steps == 0
+    assert judge(RIG, state()).reaction == "sway_balance"
+    assert judge(RIG, state()).steps == 0
 
 
 def test_a_fast_forward_centre_of_mass_falls_forward_and_rolls():
     """5 m/s forward: the XCoM is 1.6 m ahead, 1.41 m past the toes, beyond the 1.26 m that any
     number of steps can catch, and faster than sqrt(g L) = 2.97 m/s: thrown over its hands, it rolls.
     (4 m/s, a fast run, is still caught in three long steps.)"""
-    result = judge(BODY, state(velocity=(5.0, 0.0, 0.0)))
+    result = judge(RIG, state(velocity=(5.0, 0.0, 0.0)))
     assert (result.reaction, result.steps, result.direction) == ("fall_forward_roll", None, "forward")
 
 
@@ -74,13 +81,13 @@ def test_a_fast_forward_centre_of_mass_falls_forward_and_rolls():
     [(math.pi / 2, "fall_side_knees"), (-math.pi / 2, "fall_side_knees"), (math.pi, "fall_backward_hands")],
 )
 def test_the_same_state_turned_falls_to_the_side_or_back(yaw, expected):
-    assert judge(BODY, turned(state(velocity=(5.0, 0.0, 0.0)), yaw)).reaction == expected
+    assert judge(RIG, turned(state(velocity=(5.0, 0.0, 0.0)), yaw)).reaction == expected
 
 
 def test_a_slow_fall_sits_down_or_catches_itself_on_the_hands():
     """Displaced 1.6 m beyond the motion with no speed: not capturable, and slow."""
-    assert judge(BODY, state(moved=(-1.6, 0.0, 0.0))).reaction == "fall_backward_sit"
-    assert judge(BODY, state(moved=(1.6, 0.0, 0.0))).reaction == "fall_forward_hands"
+    assert judge(RIG, state(moved=(-1.6, 0.0, 0.0))).reaction == "fall_backward_sit"
+    assert judge(RIG, state(moved=(1.6, 0.0, 0.0))).reaction == "fall_forward_hands"
 
 
 @pytest.mark.parametrize(
@@ -89,23 +96,23 @@ def test_a_slow_fall_sits_down_or_catches_itself_on_the_hands():
 def test_moderate_pushes_are_caught_by_steps(speed, expected):
     """1 m/s: the XCoM is 0.32 m away, past the toes (0.19 m) by 0.13 m, one step of up to a leg
     length catches it until about 3 m/s; 3.3 m/s needs two."""
-    assert judge(BODY, state(velocity=(speed, 0.0, 0.0))).reaction == expected
+    assert judge(RIG, state(velocity=(speed, 0.0, 0.0))).reaction == expected
 
 
 def test_a_sideways_push_caught_by_steps_steps_to_that_side_standing_or_walking():
     """The character's left is +Y: pushed towards it, it steps left, whether it stood or walked (the
     walker's own velocity is the motion's, so the departure is the push's alone)."""
-    sideways = judge(BODY, state(velocity=(0.0, 1.0, 0.0)))
+    sideways = judge(RIG, state(velocity=(0.0, 1.0, 0.0)))
     assert (sideways.direction, sideways.steps, sideways.reaction) == ("left", 1, "step_left")
-    assert judge(BODY, state(velocity=(0.0, -1.0, 0.0))).reaction == "step_right"
+    assert judge(RIG, state(velocity=(0.0, -1.0, 0.0))).reaction == "step_right"
     walking = state(velocity=(1.3, 1.0, 0.0), motion_velocity=(1.3, 0.0, 0.0))
-    assert judge(BODY, walking).reaction == "step_left"
+    assert judge(RIG, walking).reaction == "step_left"
     walking_back = state(velocity=(-1.0, -1.0, 0.0), motion_velocity=(-1.0, 0.0, 0.0))
-    assert judge(BODY, walking_back).reaction == "step_right"
+    assert judge(RIG, walking_back).reaction == "step_right"
 
 
 def test_a_body_already_on_the_floor_has_fallen():
-    result = judge(BODY, state(velocity=(0.3, 0.0, 0.0), down=True))
+    result = judge(RIG, state(velocity=(0.3, 0.0, 0.0), down=True))
     assert (result.steps, result.reaction) == (None, "fall_forward_hands")
 
 
@@ -114,19 +121,19 @@ def test_a_body_low_and_sinking_at_c_is_falling_whatever_its_xcom():
     sinking faster than COLLAPSE_SPEED is going down (a push during a deep crouch), even with its
     XCoM where a sway would keep it. Low but still, or sinking but high, it is not."""
     drop = (0.0, 0.0, COLLAPSE_HEIGHT * LEG - 0.05 - COM[2])
-    low_and_sinking = judge(BODY, state(velocity=(0.3, 0.0, -1.5), moved=drop))
+    low_and_sinking = judge(RIG, state(velocity=(0.3, 0.0, -1.5), moved=drop))
     assert (low_and_sinking.steps, low_and_sinking.collapsing) == (None, True)
     assert low_and_sinking.reaction.startswith("fall_")
-    assert judge(BODY, state(velocity=(0.3, 0.0, -0.2), moved=drop)).reaction == "sway_balance"
-    assert judge(BODY, state(velocity=(0.3, 0.0, -1.5))).reaction == "sway_balance"
+    assert judge(RIG, state(velocity=(0.3, 0.0, -0.2), moved=drop)).reaction == "sway_balance"
+    assert judge(RIG, state(velocity=(0.3, 0.0, -1.5))).reaction == "sway_balance"
 
 
 def test_a_departure_inside_the_feet_sways_and_the_tolerance_is_the_sway_limit():
     """Forward, the support reaches 0.19 m ahead of the centre of mass; up to SWAY_TOLERANCE leg
     lengths beyond that is still a sway."""
     edge = 0.15 + SOLE_RADIUS + outcome.SWAY_TOLERANCE * LEG
-    assert judge(BODY, state(velocity=((edge - 0.01) * OMEGA, 0.0, 0.0))).reaction == "sway_balance"
-    assert judge(BODY, state(velocity=((edge + 0.01) * OMEGA, 0.0, 0.0))).reaction == "step_forward"
+    assert judge(RIG, state(velocity=((edge - 0.01) * OMEGA, 0.0, 0.0))).reaction == "sway_balance"
+    assert judge(RIG, state(velocity=((edge + 0.01) * OMEGA, 0.0, 0.0))).reaction == "step_forward"
 
 
 def test_steps_grow_with_the_excess_up_to_the_infinite_step_limit():

@@ -167,9 +167,9 @@ def simulate_push(path: str, push: Push) -> tuple[np.ndarray, int, dict]:
         "shift": outcome.xcom_shift,
         "down": outcome.down,
         "omega": state.omega(),
-        "leg": clip.reader.body.leg_length,
+        "leg": clip.reader.rig.leg_length,
     }
-    return reaction_features(clip.reader.body, state), CLASS_SLUGS.index(outcome.reaction), details
+    return reaction_features(clip.reader.rig, state), CLASS_SLUGS.index(outcome.reaction), details
 
 
 def _simulate_group(args: tuple[str, list[Push]]) -> list[tuple[np.ndarray, int, dict] | None]:

@@ -129,7 +129,7 @@ def real_reactions(classifier: Classifier) -> list[CapturePrediction]:
         for shift in ONSET_SHIFTS:
             p = _probabilities(classifier, reader, motion, capture.onset + shift)
             shifted.append((shift, CLASS_SLUGS[int(np.argmax(p))]))
-        rule = judge(reader.body, _state(reader, motion, capture.onset)).reaction
+        rule = judge(reader.rig, _state(reader, motion, capture.onset)).reaction
         out.append(CapturePrediction(capture, top, shifted, rule))
     return out
 
@@ -139,4 +139,4 @@ def _state(reader: FeatureReader, motion: Motion, onset: float) -> ReactionState
 
 
 def _probabilities(classifier: Classifier, reader: FeatureReader, motion: Motion, onset: float) -> np.ndarray:
-    return classifier.class_probabilities(reaction_features(reader.body, _state(reader, motion, onset)))
+    return classifier.class_probabilities(reaction_features(reader.rig, _state(reader, motion, onset)))

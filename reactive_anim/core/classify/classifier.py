@@ -112,7 +112,7 @@ class Classifier:
         """The pipeline's call (react.ReactionClassifier): class probabilities in CLASS_SLUGS order
         of a BC simulation of `before` on `ragdoll`."""
         reader = self._reader(ragdoll)
-        return self.class_probabilities(reaction_features(reader.body, reader.simulated(before, bc)))
+        return self.class_probabilities(reaction_features(reader.rig, reader.simulated(before, bc)))
 
     def _reader(self, ragdoll: Ragdoll) -> FeatureReader:
         """This thread's feature reader for a ragdoll (the last one used is kept)."""

@@ -109,25 +109,19 @@ KEPT_MOTIONS = 4  # motions whose frames' centres of mass a reader keeps
 LEG_ROLES = tuple(f"{part}_{side}" for side in SIDES for part in ("hip", "knee", "ankle"))
 
 
-@dataclass(frozen=True)
-class Body:
-    """Where the features look on one skeleton: role -> joint index, and the leg length (m)."""
-
-    joints: dict[str, int]
-    leg_length: float
-
-    @classmethod
-    def of(cls, rig: Rig) -> Body:
-        missing = [r for r in TRACKED_ROLES + FRAME_ROLES + LEG_ROLES if r not in rig.roles]
-        if missing:
-            raise SkeletonError(f"the reaction features need joints for the roles: {', '.join(missing)}")
-        return cls(joints=dict(rig.joints), leg_length=rig.leg_length)
+def feature_rig(rig: Rig) -> Rig:
+    """The rig the features read (its joints and leg length), checked to have the roles they need:
+    SkeletonError naming the missing ones."""
+    missing = [r for r in TRACKED_ROLES + FRAME_ROLES + LEG_ROLES if r not in rig.roles]
+    if missing:
+        raise SkeletonError(f"the reaction features need joints for the roles: {', '.join(missing)}")
+    return rig
 
 
-def spine_frame(body: Body, positions: FloatArray) -> FloatArray:
+def spine_frame(rig: Rig, positions: FloatArray) -> FloatArray:
     """Rows X (forward), Y (left), Z (up) of the spine frame (see the module docstring), (3, 3),
     from one pose's joint positions (J, 3)."""
-    j = body.joints
+    j = rig.joints
     left = positions[j["hip_l"]] - positions[j["hip_r"]] + positions[j["shoulder_l"]] - positions[j["shoulder_r"]]
     left = left - (left @ UP) * UP
     norm = float(np.linalg.norm(left))
@@ -156,9 +150,9 @@ class ReactionState:
     support: Support
     floor: float
 
-    def facing(self, body: Body) -> FloatArray:
+    def facing(self, rig: Rig) -> FloatArray:
         """The spine frame at B, (3, 3)."""
-        return spine_frame(body, self.positions_b)
+        return spine_frame(rig, self.positions_b)
 
     def omega(self) -> float:
         """The inverted pendulum's eigenfrequency at the motion's centre of mass height at C."""
@@ -177,18 +171,18 @@ class ReactionState:
         return self.support.reach(motion_xcom, self.xcom_departure())
 
 
-def reaction_features(body: Body, state: ReactionState) -> FloatArray:
+def reaction_features(rig: Rig, state: ReactionState) -> FloatArray:
     """EXTENDED_FEATURES (the paper's nine first): lengths in leg lengths, speeds in sqrt(g L)."""
-    frame = state.facing(body)
+    frame = state.facing(rig)
     moved = state.positions_c - state.positions_b
     departure = state.xcom_departure()
     distance = float(np.linalg.norm(departure))
     along = float(state.com_velocity[:2] @ departure / distance) if distance > 0.0 else 0.0
     reach = state.reach()
-    length, speed = body.leg_length, np.sqrt(capture.GRAVITY * body.leg_length)
+    length, speed = rig.leg_length, np.sqrt(capture.GRAVITY * rig.leg_length)
     return np.concatenate(
         [
-            np.concatenate([frame[:2] @ moved[body.joints[r]] for r in TRACKED_ROLES]) / length,
+            np.concatenate([frame[:2] @ moved[rig.joints[r]] for r in TRACKED_ROLES]) / length,
             frame @ (state.com_c - state.com_b) / length,
             frame @ (state.com_c - state.motion_com) / length,
             frame @ (state.com_velocity - state.motion_velocity) / speed,
@@ -241,13 +235,13 @@ class FeatureReader:
 
     def __init__(self, ragdoll: Ragdoll):
         self.ragdoll = ragdoll
-        self.body = Body.of(ragdoll.rig)
+        self.rig = feature_rig(ragdoll.rig)
         self.soles = SoleGeometry(ragdoll)
         self._kept: dict[int, tuple[Motion, dict[int, FloatArray]]] = {}
 
     def facing(self, motion: Motion, frame: float) -> FloatArray:
         """The spine frame of the motion at a frame (nearest), (3, 3)."""
-        return spine_frame(self.body, _positions((motion, _clamp_frame(frame, motion)))[0])
+        return spine_frame(self.rig, _positions((motion, _clamp_frame(frame, motion)))[0])
 
     def simulated(self, motion: Motion, bc: SimResult) -> ReactionState:
         """The state of a BC simulation of `motion` with its unpushed twin (simulate_push), which

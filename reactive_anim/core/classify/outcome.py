@@ -86,11 +86,12 @@ import numpy as np
 
 from ..model.arrays import FloatArray
 from ..model.impact import Impact
+from ..model.rig import Rig
 from ..model.skeleton import Motion
 from ..physics.simulate import REACTION_WINDOW, SimResult, simulate_push
 from ..physics.workspace import Workspace
 from .capture import GRAVITY
-from .features import Body, FeatureReader, ReactionState
+from .features import FeatureReader, ReactionState
 
 SWAY_TOLERANCE = 0.08  # leg lengths: 2 SD of normal foot placement (J NeuroEng Rehabil 9:69)
 FIRST_STEP_DELAY = 0.3  # s from the push to the first foot placement (Hof, Vermerris, Gjaltema 2010)
@@ -129,13 +130,13 @@ class Outcome:
     collapsing: bool = False
 
 
-def collapsing(body: Body, com: FloatArray, com_velocity: FloatArray, floor: float) -> bool:
+def collapsing(rig: Rig, com: FloatArray, com_velocity: FloatArray, floor: float) -> bool:
     """Whether the body is already going down at C: its centre of mass below COLLAPSE_HEIGHT leg
     lengths and sinking faster than COLLAPSE_SPEED (see the constants)."""
-    return bool(com[2] - floor < COLLAPSE_HEIGHT * body.leg_length and com_velocity[2] < -COLLAPSE_SPEED)
+    return bool(com[2] - floor < COLLAPSE_HEIGHT * rig.leg_length and com_velocity[2] < -COLLAPSE_SPEED)
 
 
-def judge(body: Body, state: ReactionState, window: float = REACTION_WINDOW, *, going_down: bool = False) -> Outcome:
+def judge(rig: Rig, state: ReactionState, window: float = REACTION_WINDOW, *, going_down: bool = False) -> Outcome:
     """The reaction class of a reaction state (see the module docstring); window: C - B in seconds.
     going_down: the caller knows the body is on its way to the floor whatever the state at C says
     (react._played_down: an earlier fall still playing), so the verdict is a fall."""
@@ -143,14 +144,14 @@ def judge(body: Body, state: ReactionState, window: float = REACTION_WINDOW, *, 
     norm = float(np.linalg.norm(shift))
     excess = norm - state.reach()
     omega = state.omega()
-    sinking = collapsing(body, state.com_c, state.com_velocity, state.floor)
+    sinking = collapsing(rig, state.com_c, state.com_velocity, state.floor)
     falls = going_down or state.support.down or sinking
-    steps = None if falls else _steps_to_capture(excess, omega, body.leg_length, window)
-    frame = state.facing(body)[:2, :2]
+    steps = None if falls else _steps_to_capture(excess, omega, rig.leg_length, window)
+    frame = state.facing(rig)[:2, :2]
     local = frame @ shift
     direction = way(local)
     speed = float(state.com_velocity[:2] @ shift / norm) if norm > 0.0 else 0.0
-    reaction = _reaction(steps, direction, speed, body.leg_length)
+    reaction = _reaction(steps, direction, speed, rig.leg_length)
     return Outcome(reaction, steps, direction, local, excess, speed, state.support.down, sinking)
 
 
@@ -211,4 +212,4 @@ def simulate_outcome(
     """Simulate an impact's BC on the reader's ragdoll and judge the state at C."""
     bc = simulate_push(reader.ragdoll, motion, impact, window=window, workspace=workspace)
     state = reader.simulated(motion, bc)
-    return bc, state, judge(reader.body, state, (bc.frames[-1] - impact.frame) / motion.fps)
+    return bc, state, judge(reader.rig, state, (bc.frames[-1] - impact.frame) / motion.fps)

@@ -3,7 +3,9 @@ pyright (strict) cannot check what is done with its elements; these name the dty
 
 Arrays are made with `dtype=np.float64` rather than `dtype=float`: numpy gives the same float64 array
 for both, but its stubs type only the first as float64 (the second as an array of Any, whose
-arithmetic they then take for booleans)."""
+arithmetic they then take for booleans).
+
+Also `unit`, the one unit-vector helper, kept here so that physics and transition share it."""
 
 from __future__ import annotations
 
@@ -35,3 +37,8 @@ BoolArray = npt.NDArray[np.bool_]
 # a float64 array, which is what this says; the function is numpy's own (looked up in the module's
 # namespace, which has no static type, so only this annotation types it).
 einsum: Callable[..., FloatArray] = vars(np)["einsum"]
+
+
+def unit(v: FloatArray) -> FloatArray:
+    """Vectors (..., 3) scaled to length 1 (a zero vector stays zero)."""
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)

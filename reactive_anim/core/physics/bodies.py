@@ -29,7 +29,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..model import quat
-from ..model.arrays import FloatArray, IndexArray
+from ..model.arrays import FloatArray, IndexArray, unit
 from ..model.errors import SimulationError, SkeletonError
 from ..model.rig import Rig
 from ..model.roles import SIDES, part_of, side_of
@@ -76,13 +76,9 @@ def mass_moved(bodies: tuple[RagdollBody, ...], body: RagdollBody) -> float:
     return body.subtree_mass
 
 
-def unit_vector(v: FloatArray) -> FloatArray:
-    return v / max(float(np.linalg.norm(v)), 1e-12)
-
-
 def _rotation_between(u: FloatArray, v: FloatArray) -> FloatArray:
     """Smallest rotation (quaternion) taking direction u to direction v."""
-    u, v = unit_vector(u), unit_vector(v)
+    u, v = unit(u), unit(v)
     axis = np.cross(u, v)
     s = float(np.linalg.norm(axis))
     c = float(np.dot(u, v))
@@ -91,7 +87,7 @@ def _rotation_between(u: FloatArray, v: FloatArray) -> FloatArray:
             return quat.identity()
         # Opposite: any axis perpendicular to u.
         perp = np.cross(u, [1.0, 0.0, 0.0]) if abs(u[0]) < 0.9 else np.cross(u, [0.0, 1.0, 0.0])
-        return quat.from_axis_angle(unit_vector(perp), np.pi)
+        return quat.from_axis_angle(unit(perp), np.pi)
     return quat.from_axis_angle(axis / s, np.arctan2(s, c))
 
 
@@ -205,7 +201,7 @@ def segment_end(skeleton: Skeleton, bodies: list[RagdollBody], k: int, pose: Pos
     far = tips[np.argmax(np.linalg.norm(tips - pos[body.joint], axis=1))]
     if np.linalg.norm(far - pos[body.joint]) > 1e-3:
         return far
-    parent_dir = unit_vector(pos[body.joint] - pos[bodies[body.parent].joint])
+    parent_dir = unit(pos[body.joint] - pos[bodies[body.parent].joint])
     return pos[body.joint] + 0.08 * parent_dir
 
 
@@ -217,7 +213,7 @@ def _character_frame(pos: FloatArray, index: dict[str, int]) -> CharacterFrame:
     if np.linalg.norm(left) < 1e-6:
         left = pos[index["shoulder_l"]] - pos[index["shoulder_r"]]
         left = left - np.dot(left, up) * up
-    left = unit_vector(left)
+    left = unit(left)
     forward = np.cross(left, up)
     return forward, left, up
 
@@ -267,7 +263,7 @@ def neutral_pose(skeleton: Skeleton, bodies: list[RagdollBody], index: dict[str,
     pos, grot = fk()
     forward, _, up = _character_frame(pos, index)
     down = -up
-    foot = unit_vector(forward * np.cos(foot_pitch) - up * np.sin(foot_pitch))
+    foot = unit(forward * np.cos(foot_pitch) - up * np.sin(foot_pitch))
     aim = {"pelvis": up, "waist": up, "back": up, "neck": up, "hip": down, "knee": down,
            "ankle": foot, "shoulder": down, "elbow": down, "wrist": down}  # fmt: skip
     for k, body in enumerate(bodies):
@@ -293,11 +289,11 @@ def _joint_axes(part: str, side: str | None, bone: FloatArray, frame: CharacterF
     """Rows e1 (flexion), e2 (twist), e3 (abduction) and the abduction sign for one joint."""
     forward, left, up = frame
     toward = {"forward": forward, "back": -forward, "up": up}[FLEX_TOWARD[part]]
-    e2 = unit_vector(bone)
+    e2 = unit(bone)
     e1 = np.cross(e2, toward)
     if np.linalg.norm(e1) < 0.3:
         e1 = np.cross(e2, left)
-    e1 = unit_vector(e1)
+    e1 = unit(e1)
     e3 = np.cross(e1, e2)
     # Rotating the bone about e3 moves it toward -e1; positive abduction must move it outward.
     outward = -left if side == "r" else left

@@ -15,10 +15,11 @@ import mujoco
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..model.arrays import unit
 from ..model.errors import SimulationError
 from ..model.roles import part_of
 from .anatomy import HINGE_NAMES, JOINT_DAMPING_PER_KG, JOINT_STIFFNESS_PER_KG
-from .bodies import Geometry, RagdollBody, unit_vector
+from .bodies import Geometry, RagdollBody
 
 # The one simulation step. The servo gains and the contact and limit time constants are tuned at it;
 # the stiffest servo (an ankle carrying the body, on a light foot) sets how short it must be.
@@ -79,7 +80,7 @@ def _mjcf(ragdoll_bodies: list[RagdollBody], geometry: Geometry, excludes: list[
             # tracked walker turned far off its heading within seconds (balance.py).
             ball_z = pos[ball_joints[b.name[-1]], 2] - pos[b.joint, 2]
             flat = np.array([seg[0], seg[1], 0.0])
-            heel = np.array([0.0, 0.0, ball_z]) - unit_vector(flat) * radii[k]
+            heel = np.array([0.0, 0.0, ball_z]) - unit(flat) * radii[k]
             toe = np.array([seg[0], seg[1], ball_z])
             lines.append(
                 f'{indent}  <geom name="{b.name}" type="capsule" fromto="{_fmt(heel)} {_fmt(toe)}" '
@@ -93,7 +94,7 @@ def _mjcf(ragdoll_bodies: list[RagdollBody], geometry: Geometry, excludes: list[
             )
         else:
             # Pull the capsule's ends in by its radius so neighbours meet rather than overlap.
-            inset = unit_vector(seg) * min(radii[k], 0.25 * np.linalg.norm(seg))
+            inset = unit(seg) * min(radii[k], 0.25 * np.linalg.norm(seg))
             start = inset
             stop = seg - inset * (1.0 if part_of(b.name) in ("wrist", "neck") else 0.5)
             lines.append(

@@ -37,6 +37,8 @@ class Casting:
     rig: Rig  # the character's
     library: Library
     reference: Motion  # the library's first clip: its skeleton is the one the search compares on
+    # skeleton (_key) -> its rig (_rig)
+    _rigs: dict[SkeletonKey, Rig] = field(default_factory=dict[SkeletonKey, Rig])
     # skeleton (_key) -> the pose it is lined up at
     _poses: dict[SkeletonKey, Pose] = field(default_factory=dict[SkeletonKey, Pose])
     _maps: dict[tuple[SkeletonKey, SkeletonKey], RetargetMap] = field(
@@ -93,11 +95,13 @@ class Casting:
         return self._poses[key]
 
     def _rig(self, skeleton: Skeleton) -> Rig:
-        """The skeleton's rig: the character's roles on the character's skeleton (or one the same);
-        another skeleton's own roles, or found by name."""
-        if same_skeleton(skeleton, self.character.skeleton):
-            return Rig(skeleton, self.rig.roles)
-        return Rig.of(skeleton)
+        """The skeleton's rig, made once per skeleton: the character's roles on the character's
+        skeleton (or one the same); another skeleton's own roles, or found by name."""
+        key = _key(skeleton)
+        if key not in self._rigs:
+            same = same_skeleton(skeleton, self.character.skeleton)
+            self._rigs[key] = Rig(skeleton, self.rig.roles) if same else Rig.of(skeleton)
+        return self._rigs[key]
 
 
 def _sole(motion: Motion, rig: Rig) -> float:

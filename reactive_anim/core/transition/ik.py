@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..model import quat
-from ..model.arrays import FloatArray
+from ..model.arrays import FloatArray, unit
 from ..model.skeleton import Skeleton
 
 
@@ -24,11 +24,6 @@ def arc(u: FloatArray, v: FloatArray) -> FloatArray:
         perpendicular /= np.linalg.norm(perpendicular, axis=-1, keepdims=True)
         q[opposite] = np.concatenate([np.zeros(perpendicular.shape[:-1] + (1,)), perpendicular], axis=-1)[opposite]
     return quat.normalize(q)
-
-
-def unit(v: FloatArray) -> FloatArray:
-    """Vectors (..., 3) scaled to length 1 (a zero vector stays zero)."""
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
 
 
 def two_bone_ik(

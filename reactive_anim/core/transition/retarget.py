@@ -33,12 +33,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model import quat
-from ..model.arrays import BoolArray, FloatArray, IndexArray
+from ..model.arrays import BoolArray, FloatArray, IndexArray, unit
 from ..model.errors import SkeletonError
 from ..model.rig import Rig
 from ..model.roles import SIDES
 from ..model.skeleton import Motion, Skeleton, forward_kinematics
-from .ik import arc, joint_path, two_bone_ik, unit
+from .ik import arc, joint_path, two_bone_ik
 
 # Each role's bone: from the role joint toward the next role down the chain (None: no role below,
 # the bone points to the joint's own child or end site).
