@@ -37,10 +37,12 @@ What we add beyond the paper, and why:
   a walk is moved over the floor by the push's gain at C, _gain, a stand stays where it was). A
   push the rule says falls searches the probable classes the library has, as before. Either way
   Reaction.note says what the library lacked and what was done.
-- A push the classifier calls a sway, or a single step the way the character goes, on a character
-  walking (faster than WALKING_SPEED) keeps the walk as a missing class does (above): the sway and
-  step clips start and end standing, so a nudged walker stopped and fell behind where it would
-  have been (_walking; override the class on the marker to play a clip anyway).
+- A push the classifier calls a sway or a single step (any way), on a character walking (faster
+  than WALKING_SPEED) that the push has not stopped, keeps the walk as a missing class does
+  (above): the sway and step clips start and end standing, so a nudged walker stopped and fell
+  behind where it would have been. A single step is measured against the unpushed twin: for a
+  walker it is its next step landing shorter, longer or wider, not a step from a stand (_walking;
+  override the class on the marker to play a clip anyway).
 - Feet: where the sources cross-fade (C..F, a get-up fading in, the resume), a planted foot keeps
   its footprint instead of sliding from one source's to the other's, and feet and hands that a
   fade or a cast clip puts through the floor are lifted onto it (footing.py).
@@ -117,11 +119,11 @@ NEAR: dict[str, tuple[str, ...]] = {
 KEPT_CLIP = "(the original motion)"  # Reaction.clip when the motion was kept
 SWAY = "sway_balance"
 # m/s: the centre of mass's pace over the floor at the hit (unpushed) above which a push the
-# classifier calls a sway, or a single step the way the walker goes, keeps the walk (_search,
-# _walking); the shared walks go at 1.1-1.6 m/s
+# classifier calls a sway or a single step keeps the walk (_search, _walking), if the pushed body
+# still goes that way at half this pace at C; the shared walks go at 1.1-1.6 m/s
 WALKING_SPEED = 0.6
-# Per way a walker goes, the single step that way: the walker's own next step (_walking)
-WALK_ON = {way: steps[0] for way, steps in STEP_CLASSES.items()}
+# The single steps, one per way (outcome.STEP_CLASSES): on a walker, its next step adjusted (_walking)
+SINGLE_STEPS = frozenset(steps[0] for steps in STEP_CLASSES.values())
 
 
 @dataclass(frozen=True)
@@ -301,14 +303,14 @@ def react(
     falling = None if impact.reaction is not None else _going_down(motion, bc, ragdoll, impact, library)
     clock.lap("classify")
     query = _query_ending_at(before, frame_c, casting, impact)
-    heading = _heading(motion, impact, ragdoll.rig)
-    walking = _walking(bc, heading)
+    walking = _walking(bc, impact, ragdoll.total_mass)
     choice = _search(library, query, impact, probabilities, settings, falling,
-                     lambda: _judge(motion, bc, ragdoll, impact), walking, _against_push(impact, heading))  # fmt: skip
+                     lambda: _judge(motion, bc, ragdoll, impact), walking,
+                     _against_push(impact, _heading(motion, impact, ragdoll.rig)))  # fmt: skip
     match = choice.match
     clock.lap("search")
     if match is None:  # the motion kept: the "clip" is the motion, jumped into at C; a walk moved by the push
-        placement = (0.0, _gain(bc) if walking is not None else (0.0, 0.0))
+        placement = (0.0, _gain(bc) if walking else (0.0, 0.0))
         clip, frame_e = place(motion, *placement), frame_c
     else:
         clip_raw = casting.clip(match.clip, motion.fps)
@@ -515,13 +517,13 @@ def _search(
     settings: ReactionSettings,
     falling: str | None = None,
     rule: Callable[[], Outcome] | None = None,
-    walking: str | None = None,
+    walking: bool = False,
     against: frozenset[str] = frozenset(),
 ) -> _Choice:
     """The override's class alone; a body going down, the rule's fall and then the other falls; else
     the classifier's classes (without one, the whole library); either way those going `against` the
-    push (_against_push) left out, in order: a sway or the walker's own next step while `walking`
-    (_walking), the walk kept; else the probable classes (search_with_fallback). When the library
+    push (_against_push) left out, in order: a sway or a single step while `walking` (_walking),
+    the walk kept; else the probable classes (search_with_fallback). When the library
     lacks the predicted class (or, with no classifier, has only falls), `rule` (the outcome rule's
     verdict, asked only then) decides: see _missing_class."""
     if impact.reaction is not None:
@@ -540,7 +542,7 @@ def _search(
         turned = f"the classifier's {order[0]} goes against the push; "
         order = [slug for slug in order if slug not in against]
     predicted = None if probabilities is None else order[0]
-    if walking is not None and predicted in (SWAY, WALK_ON[walking]):  # the clips stand: the walk is kept
+    if walking and (predicted == SWAY or predicted in SINGLE_STEPS):  # the clips stand: the walk is kept
         return _Choice(None, turned + f"{_spoken(predicted)} on a walk: kept the walk, the hit simulated", predicted)
     have = library.class_ranges
     missing = predicted not in have if predicted is not None else not any(not is_fall(s) for s in have)
@@ -583,18 +585,23 @@ def _against_push(impact: Impact, heading: float) -> frozenset[str]:
     return frozenset(c.slug for c in CLASSES if c.way == against)
 
 
-def _walking(bc: SimResult, heading: float) -> str | None:
-    """The way the character was walking (or running) when hit, in its facing (outcome.way), or None
-    when it was not: its centre of mass, unpushed, going faster than WALKING_SPEED over the floor. A
-    push the classifier calls a sway, or a single step the way the walker goes, then keeps the walk
-    (WALK_ON), the hit simulated, rather than playing a clip that starts and ends standing: walkers
-    nudged from behind stood still and fell 6.6-29.4 cm behind their unpushed selves within half a
-    second with a sway clip, up to 25 cm with a step clip (docs/measurements.md)."""
+def _walking(bc: SimResult, impact: Impact, mass: float) -> bool:
+    """Whether the character was walking (or running) when hit and the push leaves it walking: its
+    centre of mass, unpushed, going faster than WALKING_SPEED over the floor, and still going that
+    way at half that pace with the push's J / M added. A push the classifier calls a sway or a
+    single step then keeps the walk, the hit simulated, rather than playing a clip that starts and
+    ends standing. The classes are measured against the unpushed twin, so a walker's single step
+    is its next step landing shorter, longer or wider, and it walks on: with the clips, walkers
+    nudged from behind stood still and fell up to 29 cm behind their unpushed selves within half a
+    second, and 15.8% of non-fall walker reactions on every shared walk stood still for 0.2 s or
+    more (docs/measurements.md). A push that stops the walker (120 N·s from the front) plays its
+    clip."""
     twin = bc.unpushed if bc.unpushed is not None else bc
-    velocity = twin.com_velocity[0, :2]
-    if float(np.linalg.norm(velocity)) <= WALKING_SPEED:
-        return None
-    return way(yaw_rotate(-heading, np.append(velocity, 0.0))[:2])
+    travel = twin.com_velocity[0, :2]
+    pace = float(np.linalg.norm(travel))
+    if pace <= WALKING_SPEED:
+        return False
+    return pace + float(impact.impulse[:2] @ travel) / (pace * mass) > 0.5 * WALKING_SPEED
 
 
 def _gain(bc: SimResult) -> tuple[float, float]:

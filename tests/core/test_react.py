@@ -327,6 +327,28 @@ def test_a_walker_pushed_from_behind_into_a_step_walks_on_ahead_of_itself(take, 
     assert kept >= 2, f"only {kept} of the pushes were called a step forward"
 
 
+def test_a_walker_nudged_into_a_single_step_any_way_walks_on_unless_the_push_stops_it(walk, library, ragdoll):
+    """On the sample walk at three frames: 40 N·s from the front, left or right, which the classifier
+    calls a single step (measured against the unpushed twin: the walker's next step shorter or
+    wider), keeps the walk, and the pelvis never stands still from the hit to 1 s after it; 120 N·s
+    from the front, which stops the walker (its J / M is more than its pace), plays the step clip.
+    With the clips, 15.8% of non-fall walker reactions on every shared walk stood still for 0.2 s or
+    more (tools/bench.py quality --full)."""
+    classifier = load_classifier()
+    pelvis = walk.skeleton.index(ragdoll.roles["pelvis"])
+    for frame in (40, 100, 160):
+        ahead, left = ground_axes(walk, frame)
+        for direction in (-ahead, left, -left):
+            r = react(walk, Impact(frame, "chest", tuple(direction), 40.0), library, classifier, ragdoll=ragdoll)
+            assert r.predicted in ("step_back", "step_left", "step_right"), (frame, r.predicted)
+            assert r.kept_motion and r.note.endswith("on a walk: kept the walk, the hit simulated"), r.note
+            assert r.motion is not None
+            speed = bl.horizontal_speed(r.motion.global_positions()[:, pelvis], walk.fps)
+            assert bl.longest_still(speed[frame : frame + round(walk.fps)], walk.fps) == 0.0, (frame, direction)
+        shove = react(walk, Impact(frame, "chest", tuple(-ahead), 120.0), library, classifier, ragdoll=ragdoll)
+        assert not shove.kept_motion and shove.reaction_class in ("step_back", "steps_back"), shove.reaction_class
+
+
 def test_a_walker_nudged_into_a_sway_walks_on_and_a_stand_sways(walk, library, ragdoll) -> None:
     """20 N·s on the chest from behind, which the classifier calls a sway: on the sample walk the
     walk is kept, the hit simulated (the sway clips stand where they are: nudged walkers stood still

@@ -170,14 +170,16 @@ def test_a_calibration_first_frame_is_never_played_or_searched(tmp_path, walk, r
 def test_a_push_that_keeps_its_feet_is_no_fall_with_a_library_of_falls(walk, ragdoll, classifier, falls, push):
     """40 N·s on the chest of a walker: the outcome rule says it keeps its feet (a step), and the
     library has falls only. Every such push used to become a fall. Now the walk is kept: the hit
-    is simulated, CD tracks back to the walk and, from F, the walk plays on as it was; the note
-    (for the bake summary's line) says what the library lacked and what was done."""
+    is simulated, CD tracks back to the walk and, from F, the walk plays on as it was (moved over
+    the floor by the push); the note (for the bake summary's line) says what was done: the walk
+    kept for a sway or single step on a walk, whatever the library has, else what it lacked."""
     ahead = ground_axes(walk, B)[0]
     direction = ahead if push == "behind" else -ahead
     r = react(walk, Impact(B, ragdoll.roles["chest"], tuple(direction), 40.0), falls, classifier, ragdoll=ragdoll)
     assert r.predicted is not None and not r.predicted.startswith("fall_")
     assert r.kept_motion and r.clip == KEPT_CLIP and not r.reaction_class.startswith("fall_")
-    assert r.note.startswith("the library has no step or sway clips: kept the original motion"), r.note
+    missing = r.note.startswith("the library has no step or sway clips: kept the original motion")
+    assert missing or r.note.endswith("on a walk: kept the walk, the hit simulated"), r.note
     assert r.chained is None and r.end_frame == r.frame_f
     out = r.motion
     assert out is not None and out.num_frames == walk.num_frames
@@ -231,18 +233,16 @@ def sample_idle() -> Motion:
     ],
 )
 def test_a_push_that_keeps_its_feet_plays_the_nearest_class_that_does(
-    tmp_path, sample_walk, sample_ragdoll, sample_idle, classifier, have, push, played, note
+    tmp_path, sample_idle, classifier, have, push, played, note
 ) -> None:
     """A push the classifier and the rule call a single step, with a library that lacks its class:
     the same way with more steps, or a sway, if the library has one (never a step the other way,
-    never a fall), else the motion is kept; the note says which. From the front: the sample walk at
-    40 N·s. From behind: the sample idle at 60 N·s (a walker pushed from behind into a single step
-    keeps its walk whatever the library has: test_react.py)."""
+    never a fall), else the motion is kept; the note says which. On the sample idle at 60 N·s (a
+    walker pushed into a single step keeps its walk whatever the library has: test_react.py)."""
     library = _sample_library(tmp_path / "lib", FALLS + have)
-    motion, strength, ragdoll = (sample_idle, 60.0, None) if push == "behind" else (sample_walk, 40.0, sample_ragdoll)
-    ahead = ground_axes(motion, SAMPLE_B)[0]
+    ahead = ground_axes(sample_idle, SAMPLE_B)[0]
     direction = ahead if push == "behind" else -ahead
-    r = react(motion, Impact(SAMPLE_B, "chest", tuple(direction), strength), library, classifier, ragdoll=ragdoll)
+    r = react(sample_idle, Impact(SAMPLE_B, "chest", tuple(direction), 60.0), library, classifier)
     assert r.predicted == ("step_forward" if push == "behind" else "step_back")
     assert r.note.startswith(note), r.note
     if played is None:
@@ -252,7 +252,7 @@ def test_a_push_that_keeps_its_feet_plays_the_nearest_class_that_does(
 
 
 def test_a_push_that_falls_still_falls_and_a_library_with_the_class_is_unchanged(
-    tmp_path, sample_walk, sample_ragdoll, classifier
+    tmp_path, sample_walk, sample_ragdoll, sample_idle, classifier
 ) -> None:
     """A push the library has the class for is searched as before, with no note (the sample
     library's results are unchanged); a hard shove with a falls-only library still falls."""
@@ -262,7 +262,8 @@ def test_a_push_that_falls_still_falls_and_a_library_with_the_class_is_unchanged
                   ragdoll=sample_ragdoll)  # fmt: skip
     assert shove.reaction_class.startswith("fall_") and not shove.kept_motion and shove.note == ""
     full = load_library(SAMPLE, cache_dir=tmp_path / "cache")
-    nudge = react(sample_walk, Impact(SAMPLE_B, "chest", tuple(-ahead), 40.0), full, classifier, ragdoll=sample_ragdoll)
+    back = -ground_axes(sample_idle, SAMPLE_B)[0]
+    nudge = react(sample_idle, Impact(SAMPLE_B, "chest", tuple(back), 60.0), full, classifier)
     assert nudge.reaction_class == nudge.predicted == "step_back" and nudge.note == "" and not nudge.kept_motion
 
 
