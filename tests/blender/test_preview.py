@@ -11,14 +11,8 @@ from reactive_anim.blender.bake import bake, preview
 from reactive_anim.blender.character import action_io
 from reactive_anim.blender.ui import settings
 from tests.support.actions import action_of, keyframes
-from tests.support.bake_scene import blend_snapshot, walk_with_impacts
+from tests.support.bake_scene import blend_snapshot, summary_without_times, walk_with_impacts
 from tools.devkit.operators import addon_ops
-
-
-def _without_timing(summary: str) -> list[str]:
-    """The summary without the measured times, which differ from run to run."""
-    head, *lines = summary.splitlines()
-    return [head.split(" in ")[0], *(line.rsplit(",", 1)[0] for line in lines)]
 
 
 def test_preview_plays_on_a_ghost_and_leaves_the_character_alone(empty_scene):
@@ -75,7 +69,7 @@ def test_preview_then_accept_equals_a_direct_bake(empty_scene):
     assert keyframes(action_of(rig)) == direct_keys
     state = bake.bake_state(rig)
     assert state.rows == direct_rows
-    assert _without_timing(state.summary) == _without_timing(direct_summary)
+    assert summary_without_times(state.summary) == summary_without_times(direct_summary)
     accepted = blend_snapshot()
     for snapshot in (accepted, direct):  # the measured times differ
         name, slot, modes, _bake_fields, collections = snapshot["objects"]["walk"]

@@ -4,6 +4,7 @@ for tests/blender."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import bpy
@@ -56,3 +57,10 @@ def library_without_falls(folder: Path) -> Path:
     toml = folder / "steps.toml"
     toml.write_text("\n".join(lines), encoding="utf-8")
     return toml
+
+
+def summary_without_times(summary: str) -> list[str]:
+    """A bake summary's lines without the measured times, which differ from run to run: the
+    head's " in N s" and each impact's ", N ms" (a note may follow it)."""
+    head, *lines = summary.splitlines()
+    return [head.split(" in ")[0], *(re.sub(r", \d+ ms", "", line) for line in lines)]
