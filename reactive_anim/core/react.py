@@ -63,7 +63,7 @@ from .classify.capture import foot_bodies
 from .classify.features import FeatureReader, feature_rig
 from .classify.outcome import COLLAPSE_HEIGHT, STEP_CLASSES, Outcome, collapsing, judge, way
 from .model.arrays import FloatArray
-from .model.classes import CLASS_SLUGS, CLASSES, is_fall
+from .model.classes import CLASS_SLUGS, CLASSES, is_fall, reaction_class
 from .model.errors import Cancelled, ImpactError, LibraryError, SkeletonError
 from .model.impact import Impact
 from .model.rig import Rig
@@ -192,9 +192,9 @@ class Reaction:
     note: for the animator, why the reaction is not what the push called for (the library lacks
       its class: what it played instead, or that it kept the motion); empty when it is.
     kept_motion (match None): no clip was played: the push keeps its feet and the library has no
-      class that does (NEAR), or it is a sway on a walk (_walking), so CD tracked back to the
-      motion, which plays on unchanged from F (clip KEPT_CLIP, cost 0, no placement); kept_class:
-      the class it stands for then.
+      class that does (NEAR), or it is a sway or a single step on a walk (_walking), so CD tracked
+      back to the motion, which plays on from F (clip KEPT_CLIP, cost 0; placement: a walk moved by
+      the push's gain, _gain, else none); kept_class: the class it stands for then.
     timings: seconds per step (bc, classify, search, cd, blend, splice, total).
     """
 
@@ -306,7 +306,7 @@ def react(
     walking = _walking(bc, impact, ragdoll.total_mass)
     choice = _search(library, query, impact, probabilities, settings, falling,
                      lambda: _judge(motion, bc, ragdoll, impact), walking,
-                     _against_push(impact, _heading(motion, impact, ragdoll.rig)))  # fmt: skip
+                     _against_push(motion, impact, ragdoll.rig))  # fmt: skip
     match = choice.match
     clock.lap("search")
     if match is None:  # the motion kept: the "clip" is the motion, jumped into at C; a walk moved by the push
@@ -543,7 +543,8 @@ def _search(
         order = [slug for slug in order if slug not in against]
     predicted = None if probabilities is None else order[0]
     if walking and (predicted == SWAY or predicted in SINGLE_STEPS):  # the clips stand: the walk is kept
-        return _Choice(None, turned + f"{_spoken(predicted)} on a walk: kept the walk, the hit simulated", predicted)
+        spoken = reaction_class(predicted).label.lower()
+        return _Choice(None, turned + f"a {spoken} on a walk: kept the walk, the hit simulated", predicted)
     have = library.class_ranges
     missing = predicted not in have if predicted is not None else not any(not is_fall(s) for s in have)
     if missing and rule is not None:
@@ -565,19 +566,15 @@ def _search(
     return _Choice(match, note)
 
 
-def _heading(motion: Motion, impact: Impact, rig: Rig) -> float:
-    """The character's facing at the impact (window.py's heading)."""
-    frame = min(round(impact.frame), motion.num_frames - 1)
-    return float(frame_features(motion.slice(frame, frame + 1), rig).heading[0])
-
-
-def _against_push(impact: Impact, heading: float) -> frozenset[str]:
+def _against_push(motion: Motion, impact: Impact, rig: Rig) -> frozenset[str]:
     """The classes whose body goes against the push: their way (forward, backward, left, right) is
     the way of the push's opposite over the floor, in the facing at the impact (outcome.way). The
     classifier learnt its labels from BC against its unpushed twin, whose contacts can answer a push
     by moving the other way: a walker hit in the chest from the front at 40 N·s was given a step
     forward with certainty (docs/measurements.md). A class that goes sideways to the push, a sway
     and the side fall are never against it."""
+    frame = min(round(impact.frame), motion.num_frames - 1)
+    heading = float(frame_features(motion.slice(frame, frame + 1), rig).heading[0])
     push = yaw_rotate(-heading, np.array([impact.direction[0], impact.direction[1], 0.0]))[:2]
     if not push.any():  # straight down: no way over the floor
         return frozenset()
@@ -611,10 +608,6 @@ def _gain(bc: SimResult) -> tuple[float, float]:
     twin = bc.unpushed if bc.unpushed is not None else bc
     gain = bc.com[-1, :2] - twin.com[-1, :2]
     return float(gain[0]), float(gain[1])
-
-
-def _spoken(slug: str) -> str:
-    return "a " + slug.replace("_", " ").replace("balance", "").strip()
 
 
 def _missing_class(
