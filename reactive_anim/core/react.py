@@ -123,6 +123,7 @@ SWAY = "sway_balance"
 # still goes that way at half this pace at C; the shared walks go at 1.1-1.6 m/s
 WALKING_SPEED = 0.6
 # The single steps, one per way (outcome.STEP_CLASSES): on a walker, its next step adjusted (_walking)
+OFF_PUSH = "does not go the way of the push"  # the note when the first choice is left out (_off_push)
 SINGLE_STEPS = frozenset(steps[0] for steps in STEP_CLASSES.values())
 
 
@@ -306,7 +307,7 @@ def react(
     walking = _walking(bc, impact, ragdoll.total_mass)
     choice = _search(library, query, impact, probabilities, settings, falling,
                      lambda: _judge(motion, bc, ragdoll, impact), walking,
-                     _against_push(motion, impact, ragdoll.rig))  # fmt: skip
+                     _off_push(motion, impact, ragdoll.rig))  # fmt: skip
     match = choice.match
     clock.lap("search")
     if match is None:  # the motion kept: the "clip" is the motion, jumped into at C; a walk moved by the push
@@ -518,29 +519,27 @@ def _search(
     falling: str | None = None,
     rule: Callable[[], Outcome] | None = None,
     walking: bool = False,
-    against: frozenset[str] = frozenset(),
+    off: frozenset[str] = frozenset(),
 ) -> _Choice:
     """The override's class alone; a body going down, the rule's fall and then the other falls; else
-    the classifier's classes (without one, the whole library); either way those going `against` the
-    push (_against_push) left out, in order: a sway or a single step while `walking` (_walking),
-    the walk kept; else the probable classes (search_with_fallback). When the library
-    lacks the predicted class (or, with no classifier, has only falls), `rule` (the outcome rule's
-    verdict, asked only then) decides: see _missing_class."""
+    the classifier's classes (without one, the whole library); either way those `off` the push's way
+    (_off_push) left out while any other is left, the animator told when the first choice was, in
+    order: a sway or a single step while `walking` (_walking), the walk kept; else the probable
+    classes (search_with_fallback). When the library lacks the predicted class (or, with no
+    classifier, has only falls), `rule` (the outcome rule's verdict, asked only then) decides: see
+    _missing_class."""
     if impact.reaction is not None:
         return _Choice(search(library, query, [impact.reaction], settings.search_threshold))
     ranked = range(len(CLASS_SLUGS)) if probabilities is None else np.argsort(-probabilities, kind="stable")
     order = [CLASS_SLUGS[k] for k in ranked]
     if falling is not None:
-        falls = [falling] + [slug for slug in order if is_fall(slug) and slug != falling]
-        with_push = [slug for slug in falls if slug not in against]
-        match = search_with_fallback(library, query, with_push or falls, settings.search_threshold)
-        turned = f"the outcome rule's {falling} goes against the push; played {match.reaction_class}"
-        return _Choice(match, turned if falling in against and with_push else "")
+        falls = _with_push([falling] + [slug for slug in order if is_fall(slug) and slug != falling], off)
+        match = search_with_fallback(library, query, falls, settings.search_threshold)
+        turned = f"the outcome rule's {falling} {OFF_PUSH}; played {match.reaction_class}"
+        return _Choice(match, turned if falls[0] != falling else "")
     chance = {} if probabilities is None else dict(zip(CLASS_SLUGS, map(float, probabilities), strict=True))
-    turned = ""
-    if probabilities is not None and order[0] in against:
-        turned = f"the classifier's {order[0]} goes against the push; "
-        order = [slug for slug in order if slug not in against]
+    turned = f"the classifier's {order[0]} {OFF_PUSH}; " if probabilities is not None and order[0] in off else ""
+    order = _with_push(order, off)
     predicted = None if probabilities is None else order[0]
     if walking and (predicted == SWAY or predicted in SINGLE_STEPS):  # the clips stand: the walk is kept
         spoken = reaction_class(predicted).label.lower()
@@ -551,9 +550,8 @@ def _search(
         choice = _missing_class(library, query, predicted, rule(), settings)
         if choice is not None:
             return choice
-    if probabilities is None:  # the whole library, but for the classes going against the push
-        allowed = [slug for slug in have if slug not in against]
-        return _Choice(search(library, query, allowed if against and allowed else None, settings.search_threshold))
+    if probabilities is None:  # the whole library, but for the classes off the push's way
+        return _Choice(search(library, query, _with_push(list(have), off) if off else None, settings.search_threshold))
     likely = [slug for slug in order if chance[slug] >= settings.min_probability]
     if not any(slug in library.class_ranges for slug in likely):
         likely = [slug for slug in order if slug in library.class_ranges][:1]
@@ -566,20 +564,29 @@ def _search(
     return _Choice(match, note)
 
 
-def _against_push(motion: Motion, impact: Impact, rig: Rig) -> frozenset[str]:
-    """The classes whose body goes against the push: their way (forward, backward, left, right) is
-    the way of the push's opposite over the floor, in the facing at the impact (outcome.way). The
-    classifier learnt its labels from BC against its unpushed twin, whose contacts can answer a push
-    by moving the other way: a walker hit in the chest from the front at 40 N·s was given a step
-    forward with certainty (docs/measurements.md). A class that goes sideways to the push, a sway
-    and the side fall are never against it."""
+def _with_push(classes: list[str], off: frozenset[str]) -> list[str]:
+    """The classes, in order, without those off the push's way, unless that would leave none (a
+    library of nothing else plays what it has)."""
+    return [slug for slug in classes if slug not in off] or classes
+
+
+def _off_push(motion: Motion, impact: Impact, rig: Rig) -> frozenset[str]:
+    """The classes whose body does not go the push's way (forward, backward, left or right over the
+    floor, in the facing at the impact: outcome.way). A sway goes no way, and the side fall either
+    side, so neither is off a push to the side; a push from the front or behind sends the body
+    along it, not sideways. The classifier learnt its labels from BC against its unpushed twin,
+    which mixes the walker's own gait into the answer: a walker hit from the front at 40 N·s was
+    given a step forward with certainty, and on the shared walks and runs 62 of 3264 pushes were
+    given a class across or against them, most of them a side step for a push from the front
+    (docs/measurements.md)."""
     frame = min(round(impact.frame), motion.num_frames - 1)
     heading = float(frame_features(motion.slice(frame, frame + 1), rig).heading[0])
     push = yaw_rotate(-heading, np.array([impact.direction[0], impact.direction[1], 0.0]))[:2]
     if not push.any():  # straight down: no way over the floor
         return frozenset()
-    against = way(-push)
-    return frozenset(c.slug for c in CLASSES if c.way == against)
+    pushed = way(push)
+    kept = ("", pushed, "side") if pushed in ("left", "right") else ("", pushed)
+    return frozenset(c.slug for c in CLASSES if c.way not in kept)
 
 
 def _walking(bc: SimResult, impact: Impact, mass: float) -> bool:
