@@ -118,12 +118,13 @@ NEAR: dict[str, tuple[str, ...]] = {
 }
 KEPT_CLIP = "(the original motion)"  # Reaction.clip when the motion was kept
 SWAY = "sway_balance"
-# m/s: the centre of mass's pace over the floor at the hit (unpushed) above which a push the
-# classifier calls a sway or a single step keeps the walk (_search, _walking), if the pushed body
-# still goes that way at half this pace at C; the shared walks go at 1.1-1.6 m/s
-WALKING_SPEED = 0.6
-# The single steps, one per way (outcome.STEP_CLASSES): on a walker, its next step adjusted (_walking)
+# m/s: the centre of mass's mean pace over the floor from B to C (unpushed) above which a push the
+# classifier calls a sway or a single step keeps the walk (_search, _walking), if the push's J / M
+# leaves it going that way at this pace too; the shared walks go at 0.3-1.6 m/s (the Bandai sad,
+# elderly and not-confident walks at 0.3-0.6), a standing body shifting its weight under 0.2
+WALKING_SPEED = 0.3
 OFF_PUSH = "does not go the way of the push"  # the note when the first choice is left out (_off_push)
+# The single steps, one per way (outcome.STEP_CLASSES): on a walker, its next step adjusted (_walking)
 SINGLE_STEPS = frozenset(steps[0] for steps in STEP_CLASSES.values())
 
 
@@ -591,21 +592,23 @@ def _off_push(motion: Motion, impact: Impact, rig: Rig) -> frozenset[str]:
 
 def _walking(bc: SimResult, impact: Impact, mass: float) -> bool:
     """Whether the character was walking (or running) when hit and the push leaves it walking: its
-    centre of mass, unpushed, going faster than WALKING_SPEED over the floor, and still going that
-    way at half that pace with the push's J / M added. A push the classifier calls a sway or a
+    centre of mass, unpushed, going faster than WALKING_SPEED over the floor from B to C on the
+    mean (a slow walk's pace swings with its steps), and still going that way that fast with the
+    push's J / M added. A push the classifier calls a sway or a
     single step then keeps the walk, the hit simulated, rather than playing a clip that starts and
     ends standing. The classes are measured against the unpushed twin, so a walker's single step
     is its next step landing shorter, longer or wider, and it walks on: with the clips, walkers
     nudged from behind stood still and fell up to 29 cm behind their unpushed selves within half a
     second, and 15.8% of non-fall walker reactions on every shared walk stood still for 0.2 s or
-    more (docs/measurements.md). A push that stops the walker (120 N·s from the front) plays its
+    more; with the pace at the hit over 0.6 m/s, the slow walks still played clips and stood, 11.2%
+    (docs/measurements.md). A push that stops the walker (120 N·s from the front) plays its
     clip."""
     twin = bc.unpushed if bc.unpushed is not None else bc
-    travel = twin.com_velocity[0, :2]
+    travel = twin.com_velocity[:, :2].mean(axis=0)
     pace = float(np.linalg.norm(travel))
     if pace <= WALKING_SPEED:
         return False
-    return pace + float(impact.impulse[:2] @ travel) / (pace * mass) > 0.5 * WALKING_SPEED
+    return pace + float(impact.impulse[:2] @ travel) / (pace * mass) > WALKING_SPEED
 
 
 def _gain(bc: SimResult) -> tuple[float, float]:

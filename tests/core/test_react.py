@@ -352,6 +352,28 @@ def test_a_walker_nudged_into_a_single_step_any_way_walks_on_unless_the_push_sto
         assert not shove.kept_motion and shove.reaction_class in ("step_back", "steps_back"), shove.reaction_class
 
 
+def test_a_slow_walker_nudged_into_a_step_walks_on(library) -> None:
+    """A real slow walk (Bandai's sad walk, 0.3-0.6 m/s) pushed at 40 N·s from behind and both
+    sides, which the classifier calls a single step: the walk is kept (its pace from B to C over
+    WALKING_SPEED), and from the hit to 1 s after it the pelvis never stands still for
+    bl.STILL_TIME. With the pace at the hit over 0.6 m/s needed, these walkers played step clips,
+    which start and end standing, and stood still for 0.23-0.53 s (tools/bench.py quality --full)."""
+    motion = bvh.read_bvh(require_mocap("bandai_namco/dataset-1/dataset-1_walk_sad_002.bvh"))
+    ragdoll = character_ragdoll(motion)
+    classifier = load_classifier()
+    pelvis = motion.skeleton.index(ragdoll.roles["pelvis"])
+    for frame in (144, 266):
+        ahead, left = ground_axes(motion, frame, ragdoll.roles)
+        for direction in (ahead, left, -left):
+            r = react(motion, Impact(frame, ragdoll.roles["chest"], tuple(direction), 40.0), library, classifier,
+                      ragdoll=ragdoll)  # fmt: skip
+            assert r.kept_motion and "kept the walk" in r.note, (frame, r.reaction_class, r.note)
+            assert r.motion is not None
+            speed = bl.horizontal_speed(r.motion.global_positions()[:, pelvis], motion.fps)
+            still = bl.longest_still(speed[frame : frame + round(motion.fps)], motion.fps)
+            assert still < bl.STILL_TIME, (frame, direction, still)
+
+
 def test_a_walker_nudged_into_a_sway_walks_on_and_a_stand_sways(walk, library, ragdoll) -> None:
     """20 N·s on the chest from behind, which the classifier calls a sway: on the sample walk the
     walk is kept, the hit simulated (the sway clips stand where they are: nudged walkers stood still
