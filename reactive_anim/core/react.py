@@ -86,6 +86,7 @@ from .search.window import (
 from .transition.blend import blend, blend_travel, carry, fade_weights, place
 from .transition.casting import Casting
 from .transition.footing import hold_feet, lift_onto_floor
+from .transition.soften import soften
 
 RESUME_WAIT = 60.0  # Eq. 1 cost per second a reaction goes on before the motion resumes (_resume)
 RESUME_RATE = 30.0  # fade starts and re-entries tried per second (_resume)
@@ -154,6 +155,8 @@ class ReactionSettings:
       past 20-40 degrees of tilt].
     hold_feet: planted feet keep their footprints where the sources cross-fade, and the body stays
       out of the floor (footing.py) [True; False leaves the feet where the fades put them, sliding].
+    soften: the simulated stretch (BC, CD) averaged over time where a joint's acceleration spikes
+      (soften.py) [True; False plays it as sampled: a struck foot stops between two frames].
     """
 
     reaction_window: float = 0.25
@@ -166,6 +169,7 @@ class ReactionSettings:
     fall_transition: float = 0.95
     assist: RootAssist | None = field(default_factory=RootAssist)
     hold_feet: bool = True
+    soften: bool = True
 
 
 class ReactionClassifier(Protocol):
@@ -336,16 +340,19 @@ def react(
     target = blend(played, clip_ef, fade_weights(steps + 1))
     cd = track(ragdoll, bc.state, target, steps / motion.fps, assist=settings.assist, ramp=(BC_GAINS, CD_RAMP),
                workspace=workspace)  # fmt: skip
+    sim = _join(before.slice(0, frame_c), cd.motion)  # BC, then CD from C
+    if settings.soften:
+        sim = soften(sim, int(np.ceil(impact.frame)) + 1)
     clock.lap("cd")
-    transition = blend(cd.motion, clip_ef, fade_weights(steps + 1))
+    transition = blend(sim.slice(frame_c, sim.num_frames), clip_ef, fade_weights(steps + 1))
     if match is None:  # the motion plays on from F; the reaction ends there
-        out = _join(before.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, clip.num_frames))
+        out = _join(sim.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, clip.num_frames))
         clock.lap("blend")
         chained, chain_fade, end_frame = None, [], min(frame_c + steps, out.num_frames - 1)
         out, resumed_at, resume_fade = _resume_or_hold(out, source or motion, 0, 0, ragdoll.rig)
     else:
         stop = max(frame_e + steps + 1, _still_from(library, match.clip_index, motion.fps))
-        out = _join(before.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, min(stop, clip.num_frames)))
+        out = _join(sim.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, min(stop, clip.num_frames)))
         clock.lap("blend")
         out, chained, chain_fade = _chain(out, casting, match, ragdoll.rig, settings)
         standing = chained is not None or not is_fall(match.reaction_class)

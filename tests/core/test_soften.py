@@ -1,0 +1,65 @@
+"""Softening the simulated stretch where a joint's acceleration spikes (core/transition/soften.py),
+on the sample walk made to stop dead, as a contact stops a simulated limb between two frames."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from reactive_anim.core.model import bvh
+from reactive_anim.core.model.skeleton import Motion
+from reactive_anim.core.transition.soften import SIGMA, STRIDE, soften
+from tests.support.mocap import REPO
+from tools.devkit import believability as bl
+
+STOP = 120  # the frame from which the stopped walk holds its pose
+
+
+@pytest.fixture(scope="module")
+def walk() -> Motion:
+    return bvh.read_bvh(REPO / "sample_clips" / "walk.bvh")
+
+
+@pytest.fixture(scope="module")
+def stopped(walk) -> Motion:
+    """The sample walk holding frame STOP's pose from there on: the swing foot, at about 4 m/s,
+    stops within a frame."""
+    held = np.minimum(np.arange(walk.num_frames), STOP)
+    return Motion(walk.skeleton, walk.fps, walk.root_pos[held], walk.local_rot[held])
+
+
+def largest_acceleration(motion: Motion, first: int, stop: int) -> float:
+    return float(np.nanmax(bl.acceleration(motion.global_positions(), motion.fps)[first:stop]))
+
+
+def test_a_dead_stop_is_rounded_off_and_the_rest_left_as_it_was(walk, stopped) -> None:
+    """The stop's acceleration (over the benchmark's 1/30 s stride) more than halves; the
+    frames before `first`, and those too far from the stop for its stencil and the Gaussian's reach
+    to touch, are the same bit for bit."""
+    first = STOP - 30
+    out = soften(stopped, first)
+    raw = largest_acceleration(stopped, STOP - 10, STOP + 10)
+    assert raw > 100.0, raw  # the walk's own largest is 59 m/s^2
+    assert largest_acceleration(out, STOP - 10, STOP + 10) < 0.5 * raw  # measured 123 -> 50
+    assert np.array_equal(out.local_rot[:first], stopped.local_rot[:first])
+    touched = round(STRIDE * walk.fps) * 2 + int(np.ceil(2.0 * SIGMA * walk.fps)) + 1
+    assert np.array_equal(out.local_rot[STOP + touched :], stopped.local_rot[STOP + touched :])
+    assert np.array_equal(out.root_pos[STOP + touched :], stopped.root_pos[STOP + touched :])
+    assert not np.array_equal(out.local_rot[STOP - 2 : STOP + 2], stopped.local_rot[STOP - 2 : STOP + 2])
+
+
+def test_a_motion_without_spikes_is_returned_as_it_is() -> None:
+    """The sample idle: no joint accelerates anywhere near SPIKE_FROM, so nothing changes."""
+    idle = bvh.read_bvh(REPO / "sample_clips" / "idle.bvh")
+    out = soften(idle, 1)
+    assert np.array_equal(out.local_rot, idle.local_rot) and np.array_equal(out.root_pos, idle.root_pos)
+
+
+def test_the_sign_of_a_quaternion_does_not_change_the_result(stopped) -> None:
+    """q and -q are the same turn: with every other frame's rotations negated, the softened pose is
+    the same (rotations are averaged made continuous in time)."""
+    flipped = stopped.local_rot.copy()
+    flipped[1::2] *= -1.0
+    a = soften(stopped, STOP - 30).global_positions()
+    b = soften(Motion(stopped.skeleton, stopped.fps, stopped.root_pos, flipped), STOP - 30).global_positions()
+    assert np.allclose(a, b, atol=1e-9)
