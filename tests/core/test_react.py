@@ -398,7 +398,7 @@ def test_a_walker_nudged_into_a_sway_walks_on_and_a_stand_sways(walk, library, r
 def test_a_struck_foot_is_softened_and_the_motion_before_the_hit_kept(walk, library, ragdoll) -> None:
     """40 N·s from behind on the sample walk where the simulated swing foot strikes the floor
     (ReactionSettings.soften, soften.py): from two frames after the hit to F the largest joint
-    acceleration drops by a fifth or more (measured 138-142 m/s^2 as sampled, 97-100 softened; the
+    acceleration drops by a fifth or more (measured 138-142 m/s^2 as sampled, 90-92 softened; the
     walk's own largest is 59), and every frame up to the hit's is the same with or without it."""
     classifier = load_classifier()
     for frame in (40, 140):

@@ -8,7 +8,7 @@ import pytest
 
 from reactive_anim.core.model import bvh
 from reactive_anim.core.model.skeleton import Motion
-from reactive_anim.core.transition.soften import SIGMA, STRIDE, soften
+from reactive_anim.core.transition.soften import SIGMA, SPIKE_FULL, STRIDE, soften
 from tests.support.mocap import REPO
 from tools.devkit import believability as bl
 
@@ -40,12 +40,24 @@ def test_a_dead_stop_is_rounded_off_and_the_rest_left_as_it_was(walk, stopped) -
     out = soften(stopped, first)
     raw = largest_acceleration(stopped, STOP - 10, STOP + 10)
     assert raw > 100.0, raw  # the walk's own largest is 59 m/s^2
-    assert largest_acceleration(out, STOP - 10, STOP + 10) < 0.5 * raw  # measured 123 -> 50
+    assert largest_acceleration(out, STOP - 10, STOP + 10) < 0.5 * raw  # measured 123 -> 44
     assert np.array_equal(out.local_rot[:first], stopped.local_rot[:first])
     touched = round(STRIDE * walk.fps) * 2 + int(np.ceil(2.0 * SIGMA * walk.fps)) + 1
     assert np.array_equal(out.local_rot[STOP + touched :], stopped.local_rot[STOP + touched :])
     assert np.array_equal(out.root_pos[STOP + touched :], stopped.root_pos[STOP + touched :])
     assert not np.array_equal(out.local_rot[STOP - 2 : STOP + 2], stopped.local_rot[STOP - 2 : STOP + 2])
+
+
+def test_a_harder_stop_is_softened_again_until_it_no_longer_spikes(walk) -> None:
+    """The sample walk played twice as fast, stopped dead: its feet stop from about 8 m/s (257
+    m/s^2). One pass of the Gaussian leaves 106, over SPIKE_FULL; softened again while a frame
+    spikes (soften.PASSES), the stop ends under it (measured 57)."""
+    fast = Motion(walk.skeleton, walk.fps, walk.root_pos[::2], walk.local_rot[::2])
+    held = np.minimum(np.arange(fast.num_frames), STOP // 2)
+    stopped = Motion(fast.skeleton, fast.fps, fast.root_pos[held], fast.local_rot[held])
+    around = (STOP // 2 - 10, STOP // 2 + 10)
+    assert largest_acceleration(stopped, *around) > 200.0
+    assert largest_acceleration(soften(stopped, STOP // 2 - 30), *around) < SPIKE_FULL
 
 
 def test_a_motion_without_spikes_is_returned_as_it_is() -> None:
