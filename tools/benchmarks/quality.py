@@ -321,11 +321,13 @@ def measure(
         "fade_slide": max(fade_slides), "fade_slides": fade_slides, "fade_at": fades[int(np.argmax(fade_slides))][0],
         "depth": depth, "depth_at": depth_at + lo,
         "real_depth": real.profile.largest(real.profile.depth, ra, rb)[0],
+        "real_accel": real.profile.largest(real.profile.accel, ra, rb)[0],
         "accel": accel, "accel_at": accel_at + lo, "seams": seam_rows,
         "move_any": move_any, "move_any_at": move_any_at + lo,
         "ahead": ahead, "ahead_at": k, "still": still, "still_at": still_at,
         "real_still": bl.longest_still(real.profile.speed[ra:rb], fps),
         "right_direction": bl.right_direction(side, reaction.reaction_class),
+        "predicted_right": reaction.predicted is None or bl.right_direction(side, reaction.predicted),
         "ms": reaction.timings.get("total", float("nan")) * 1e3, "warm": warm,
     }  # fmt: skip
 
@@ -438,6 +440,13 @@ def figures(rows: list[dict], refs: References, failures: int) -> list[Row]:
     add("acceleration", "40 N·s reactions above the rig's real walks' largest", 100 * np.mean(above), "%",
         f"walks' largest {walks_text} m/s^2", "<= 10 %", np.mean(above) <= GOALS["over_walks_share"],
         reactions=len(light))  # fmt: skip
+    for kind in sorted({r["kind"] for r in light}):
+        of_kind = [r for r in light if r["kind"] == kind]
+        limit = [refs.walks_accel.get(r["rig"], all_walks) for r in of_kind]
+        share = np.mean([r["accel"] > w for r, w in zip(of_kind, limit, strict=True)])
+        real_share = np.mean([r["real_accel"] > w for r, w in zip(of_kind, limit, strict=True)])
+        add("acceleration", f"  on {kind}s", 100 * share, "%", f"{100 * real_share:.1f} % (same windows unpushed)",
+            "(context)", None, reactions=len(of_kind))  # fmt: skip
     seam_values = [(name, s) for r in rows for name, s in r["seams"].items()]
     within = [s["pelvis_accel"] <= refs.pelvis_p99 for _, s in seam_values if np.isfinite(s["pelvis_accel"])]
     kinds = {}
@@ -483,6 +492,9 @@ def figures(rows: list[dict], refs: References, failures: int) -> list[Row]:
         share = np.mean([r["right_direction"] for r in sub])
         add("class sense", f"front/back pushes the right way, {label} N·s", 100 * share, "%", "-",
             f">= {goal * 100:.0f} %", share >= goal, reactions=len(sub))  # fmt: skip
+    off = [r for r in rows if not r["predicted_right"]]
+    add("class sense", "the classifier's first class off the push (left out, the animator told)",
+        100 * len(off) / len(rows), "%", "-", "(context)", None, reactions=len(off), of=len(rows))  # fmt: skip
     side = [r for r in rows if r["side"] in ("left", "right")]
     share = np.mean([r["right_direction"] for r in side])
     classes = {}
