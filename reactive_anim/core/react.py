@@ -547,7 +547,7 @@ def _search(
         return _Choice(match, turned if falls[0] != falling else "")
     chance = {} if probabilities is None else dict(zip(CLASS_SLUGS, map(float, probabilities), strict=True))
     turned = f"the classifier's {order[0]} {OFF_PUSH}; " if probabilities is not None and order[0] in off else ""
-    order = _with_push(order, off)
+    ranked_all, order = order, _with_push(order, off)
     predicted = None if probabilities is None else order[0]
     if walking and (predicted == SWAY or predicted in SINGLE_STEPS):  # the clips stand: the walk is kept
         spoken = reaction_class(predicted).label.lower()
@@ -561,8 +561,8 @@ def _search(
     if probabilities is None:  # the whole library, but for the classes off the push's way
         return _Choice(search(library, query, _with_push(list(have), off) if off else None, settings.search_threshold))
     likely = [slug for slug in order if chance[slug] >= settings.min_probability]
-    if not any(slug in library.class_ranges for slug in likely):
-        likely = [slug for slug in order if slug in library.class_ranges][:1]
+    if not any(slug in library.class_ranges for slug in likely):  # else the likeliest it has, the push's way first
+        likely = [slug for slug in order + ranked_all if slug in library.class_ranges][:1]
     if not likely:
         raise LibraryError("the library has no usable class for this reaction")
     match = search_with_fallback(library, query, likely, settings.search_threshold)

@@ -267,6 +267,23 @@ def test_a_push_that_falls_still_falls_and_a_library_with_the_class_is_unchanged
     assert nudge.reaction_class == nudge.predicted == "step_back" and nudge.note == "" and not nudge.kept_motion
 
 
+@pytest.mark.parametrize(("classes", "side"), [(("fall_forward_roll", "fall_forward_hands"), "front"),
+                                            (("fall_side_knees",), "behind")])  # fmt: skip
+def test_a_library_with_only_classes_off_the_push_plays_what_it_has(
+    tmp_path, sample_walk, sample_ragdoll, classifier, classes, side
+) -> None:
+    """A 300 N·s shove whose every likely class the library lacks, and whose classes go across or
+    against the push (react._off_push): the likeliest class the library has is played, and the
+    note says what it lacked, as before classes off the push were left out (then it was a
+    LibraryError: "no usable class")."""
+    library = _sample_library(tmp_path / "lib", classes)
+    ahead = ground_axes(sample_walk, SAMPLE_B)[0]
+    push = ahead if side == "behind" else -ahead
+    r = react(sample_walk, Impact(SAMPLE_B, "chest", tuple(push), 300.0), library, classifier, ragdoll=sample_ragdoll)
+    assert r.reaction_class in classes and not r.kept_motion, r.reaction_class
+    assert r.note.startswith("the library has no ") and f"played {r.reaction_class}" in r.note, r.note
+
+
 def test_without_a_classifier_a_falls_only_library_keeps_a_nudged_walk(tmp_path, sample_walk, sample_ragdoll):
     """With no classifier the whole library is searched; a library of falls alone would give a
     nudge a fall, so the outcome rule decides there too."""
