@@ -58,11 +58,11 @@ def soften(motion: Motion, first: int) -> Motion:
 def _pass(motion: Motion, first: int) -> Motion:
     """One pass of soften: `motion` itself where nothing spikes."""
     n = motion.num_frames
+    if first >= n:
+        return motion
     sigma = SIGMA * motion.fps
     reach = max(1, math.ceil(2.0 * sigma))
     stride = max(1, round(STRIDE * motion.fps))
-    if n - first < 1:
-        return motion
     lo = max(first - stride, 0)
     spikes = np.zeros(n)
     spikes[lo:] = _spikes(motion.slice(lo, n).global_positions(), stride, motion.fps)
