@@ -610,8 +610,7 @@ def _walking(bc: SimResult, impact: Impact, mass: float) -> bool:
     more; with the pace at the hit over 0.6 m/s, the slow walks still played clips and stood, 11.2%
     (docs/measurements.md). A push that stops the walker (120 N·s from the front) plays its
     clip."""
-    twin = bc.unpushed if bc.unpushed is not None else bc
-    travel = twin.com_velocity[:, :2].mean(axis=0)
+    travel = bc.twin.com_velocity[:, :2].mean(axis=0)
     pace = float(np.linalg.norm(travel))
     if pace <= WALKING_SPEED:
         return False
@@ -622,8 +621,7 @@ def _gain(bc: SimResult) -> tuple[float, float]:
     """How far the push has moved the body over the floor by C: the pushed centre of mass less its
     unpushed twin's. A kept walk is moved by it, so the walker goes on from where the push put it
     (a walker pushed from behind stays ahead of its unpushed self) instead of being pulled back."""
-    twin = bc.unpushed if bc.unpushed is not None else bc
-    gain = bc.com[-1, :2] - twin.com[-1, :2]
+    gain = bc.com[-1, :2] - bc.twin.com[-1, :2]
     return float(gain[0]), float(gain[1])
 
 

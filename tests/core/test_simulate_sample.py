@@ -29,11 +29,11 @@ import numpy as np
 import pytest
 
 from reactive_anim.core.model import bvh, quat
-from reactive_anim.core.model.errors import ImpactError
+from reactive_anim.core.model.errors import ImpactError, SimulationError
 from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.model.skeleton import Motion
 from reactive_anim.core.physics.ragdoll import Ragdoll, build_ragdoll
-from reactive_anim.core.physics.simulate import SimResult, simulate_impact, track
+from reactive_anim.core.physics.simulate import SimResult, simulate_impact, simulate_push, track
 from reactive_anim.core.physics.watch import MAX_HIT_SPEED
 from tests.support.mocap import REPO
 from tools.devkit.poses import ground_axes
@@ -140,6 +140,22 @@ def test_side_push_moves_the_centre_of_mass_sideways(clips, clip_name, side):
     sideways = side * (dx @ left)
     assert FREE_FLIGHT_RANGE[0] < sideways / free_flight(PUSH, clip) < FREE_FLIGHT_RANGE[1], dx
     assert abs(dx @ forward) < 0.4 * sideways, dx
+
+
+def test_a_push_s_twin_is_the_same_run_without_the_push(clips):
+    """simulate_push's twin starts where the pushed run starts and differs from it by the push
+    alone: at C its centre of mass is behind the pushed one along the push. A run made without a
+    twin (simulate_impact) says so when asked for one, rather than standing in for it."""
+    walk = clips["walk"]
+    forward, _ = character_axes(walk, IMPACT_FRAME)
+    impact = Impact(IMPACT_FRAME, bone(walk, "chest"), tuple(forward), PUSH)
+    pushed = simulate_push(walk.ragdoll, walk.motion, impact, window=WINDOW)
+    assert np.array_equal(pushed.twin.frames, pushed.frames)
+    assert np.allclose(pushed.twin.com[0], pushed.com[0], atol=0.005)  # the first sample, a step after the hit
+    free_flight = PUSH / walk.ragdoll.total_mass * WINDOW
+    assert (pushed.com[-1] - pushed.twin.com[-1]) @ forward > FREE_FLIGHT_RANGE[0] * free_flight
+    with pytest.raises(SimulationError, match="simulate_push"):
+        _ = react(walk, "chest", forward, PUSH).twin
 
 
 def test_small_pushes_are_linear_in_the_impulse(clips):

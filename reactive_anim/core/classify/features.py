@@ -246,8 +246,6 @@ class FeatureReader:
     def simulated(self, motion: Motion, bc: SimResult) -> ReactionState:
         """The state of a BC simulation of `motion` with its unpushed twin (simulate_push), which
         is the motion at C."""
-        if bc.unpushed is None:
-            raise ValueError("a reaction state is read from BC with its unpushed twin (simulate_push)")
         b = _clamp_frame(bc.frames[0], motion)
         positions = _positions((motion, b), (bc.motion, bc.motion.num_frames - 1))
         return ReactionState(
@@ -256,8 +254,8 @@ class FeatureReader:
             positions_c=positions[1],
             com_c=bc.com[-1],
             com_velocity=bc.com_velocity[-1],
-            motion_com=bc.unpushed.com[-1],
-            motion_velocity=bc.unpushed.com_velocity[-1],
+            motion_com=bc.twin.com[-1],
+            motion_velocity=bc.twin.com_velocity[-1],
             support=self.soles.support(bc.state.qpos, bc.floor, bc.contacts[-1]),
             floor=bc.floor,
         )

@@ -96,6 +96,14 @@ class SimResult:
     unpushed: SimResult | None = None  # simulate_push: the same BC run without the push
 
     @property
+    def twin(self) -> SimResult:
+        """The unpushed run (simulate_push), what a push is measured against; an error on a run
+        made without it."""
+        if self.unpushed is None:
+            raise SimulationError("this BC run was made without its unpushed twin (simulate_push)")
+        return self.unpushed
+
+    @property
     def com_height(self) -> FloatArray:
         """(T,) the centre of mass's height above the run's floor."""
         return self.com[:, 2] - self.floor
