@@ -86,7 +86,7 @@ from .search.window import (
 from .transition.blend import blend, blend_travel, carry, fade_weights, place
 from .transition.casting import Casting
 from .transition.footing import hold_feet, lift_onto_floor
-from .transition.soften import soften
+from .transition.soften import context_frames, soften
 
 RESUME_WAIT = 60.0  # Eq. 1 cost per second a reaction goes on before the motion resumes (_resume)
 RESUME_RATE = 30.0  # fade starts and re-entries tried per second (_resume)
@@ -340,19 +340,23 @@ def react(
     target = blend(played, clip_ef, fade_weights(steps + 1))
     cd = track(ragdoll, bc.state, target, steps / motion.fps, assist=settings.assist, ramp=(BC_GAINS, CD_RAMP),
                workspace=workspace)  # fmt: skip
-    sim = _join(before.slice(0, frame_c), cd.motion)  # BC, then CD from C
+    # the simulated stretch: BC from the frames soften reads before the one after the hit, then CD
+    hit = int(np.ceil(impact.frame)) + 1
+    lead = max(hit - context_frames(motion.fps), 0)
+    sim = _join(before.slice(lead, frame_c), cd.motion)
     if settings.soften:
-        sim = soften(sim, int(np.ceil(impact.frame)) + 1)
+        sim = soften(sim, hit - lead)
     clock.lap("cd")
-    transition = blend(sim.slice(frame_c, sim.num_frames), clip_ef, fade_weights(steps + 1))
+    transition = blend(sim.slice(frame_c - lead, sim.num_frames), clip_ef, fade_weights(steps + 1))
+    to_c = (before.slice(0, lead), sim.slice(0, frame_c - lead))
     if match is None:  # the motion plays on from F; the reaction ends there
-        out = _join(sim.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, clip.num_frames))
+        out = _join(*to_c, transition, clip.slice(frame_e + steps + 1, clip.num_frames))
         clock.lap("blend")
         chained, chain_fade, end_frame = None, [], min(frame_c + steps, out.num_frames - 1)
         out, resumed_at, resume_fade = _resume_or_hold(out, source or motion, 0, 0, ragdoll.rig)
     else:
         stop = max(frame_e + steps + 1, _still_from(library, match.clip_index, motion.fps))
-        out = _join(sim.slice(0, frame_c), transition, clip.slice(frame_e + steps + 1, min(stop, clip.num_frames)))
+        out = _join(*to_c, transition, clip.slice(frame_e + steps + 1, min(stop, clip.num_frames)))
         clock.lap("blend")
         out, chained, chain_fade = _chain(out, casting, match, ragdoll.rig, settings)
         standing = chained is not None or not is_fall(match.reaction_class)

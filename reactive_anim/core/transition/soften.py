@@ -46,7 +46,7 @@ PASSES = 3
 def soften(motion: Motion, first: int) -> Motion:
     """`motion` with its frames from `first` on averaged over time where a joint's acceleration
     spikes, up to PASSES times while one still does (see the module docstring); the frames before
-    `first` are read, never changed."""
+    `first` are read (context_frames of them), never changed, and so is every frame not softened."""
     for _ in range(PASSES):
         softened = _pass(motion, first)
         if softened is motion:
@@ -55,35 +55,49 @@ def soften(motion: Motion, first: int) -> Motion:
     return motion
 
 
+def context_frames(fps: float) -> int:
+    """How many frames before `first` soften reads: a caller need pass no more of what came before."""
+    return _stride(fps) + _reach(fps)
+
+
+def _stride(fps: float) -> int:
+    return max(1, round(STRIDE * fps))
+
+
+def _reach(fps: float) -> int:
+    return max(1, math.ceil(2.0 * SIGMA * fps))
+
+
 def _pass(motion: Motion, first: int) -> Motion:
     """One pass of soften: `motion` itself where nothing spikes."""
     n = motion.num_frames
     if first >= n:
         return motion
-    sigma = SIGMA * motion.fps
-    reach = max(1, math.ceil(2.0 * sigma))
-    stride = max(1, round(STRIDE * motion.fps))
+    stride, reach = _stride(motion.fps), _reach(motion.fps)
     lo = max(first - stride, 0)
     spikes = np.zeros(n)
     spikes[lo:] = _spikes(motion.slice(lo, n).global_positions(), stride, motion.fps)
-    amount = _widened(spikes, stride + reach)[first:]
-    if not amount.any():
+    amount = _widened(spikes, stride + reach)
+    rows = first + np.flatnonzero(amount[first:] > 0)  # the frames softened: no other is written
+    if not len(rows):
         return motion
     taps = np.arange(-reach, reach + 1)
-    weights = np.exp(-0.5 * (taps / sigma) ** 2)
+    weights = np.exp(-0.5 * (taps / (SIGMA * motion.fps)) ** 2)
     weights /= weights.sum()
-    near = np.clip(np.arange(first, n)[:, None] + taps, 0, n - 1)  # (frames, taps)
-    rot = quat.make_continuous(motion.local_rot)
-    mean_rot = quat.normalize(_mean(rot[near], weights))
+    near = np.clip(rows[:, None] + taps, 0, n - 1)  # (rows, taps)
+    share = amount[rows]
+    base = max(first - reach, 0)  # the first frame read: signs made continuous from there on
+    rot = quat.make_continuous(motion.local_rot[base:])
+    mean_rot = quat.normalize(_mean(rot[near - base], weights))
     local_rot = motion.local_rot.copy()
-    local_rot[first:] = quat.slerp(rot[first:], mean_rot, np.repeat(amount[:, None], motion.skeleton.num_joints, 1))
+    turn = np.repeat(share[:, None], motion.skeleton.num_joints, 1)
+    local_rot[rows] = quat.slerp(rot[rows - base], mean_rot, turn)
     root = motion.root_pos.copy()
-    root[first:] += amount[:, None] * (_mean(root[near], weights) - root[first:])
+    root[rows] += share[:, None] * (_mean(motion.root_pos[near], weights) - root[rows])
     local_pos = None
     if motion.local_pos is not None:
         local_pos = motion.local_pos.copy()
-        mean_pos = _mean(local_pos[near], weights)
-        local_pos[first:] += amount[:, None, None] * (mean_pos - local_pos[first:])
+        local_pos[rows] += share[:, None, None] * (_mean(motion.local_pos[near], weights) - local_pos[rows])
     return Motion(motion.skeleton, motion.fps, root, local_rot, local_pos)
 
 
