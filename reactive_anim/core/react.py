@@ -559,7 +559,7 @@ def _search(
     have = library.class_ranges
     missing = predicted not in have if predicted is not None else not any(not is_fall(s) for s in have)
     if missing and rule is not None:
-        choice = _missing_class(library, query, predicted, rule(), settings)
+        choice = _missing_class(library, query, predicted, rule(), settings, off)
         if choice is not None:
             return choice
     if probabilities is None:  # the whole library, but for the classes off the push's way
@@ -630,16 +630,25 @@ def _gain(bc: SimResult) -> tuple[float, float]:
 
 
 def _missing_class(
-    library: Library, query: Query, predicted: str | None, verdict: Outcome, settings: ReactionSettings
+    library: Library,
+    query: Query,
+    predicted: str | None,
+    verdict: Outcome,
+    settings: ReactionSettings,
+    off: frozenset[str] = frozenset(),
 ) -> _Choice | None:
     """A push whose class the library lacks: when the outcome rule says it keeps its feet, the
     nearest class the library has that keeps them (NEAR, from the class the push calls for: the
     classifier's, or the rule's when the classifier says fall), else the motion kept. None when the
-    rule says it falls (the probable classes the library has are searched, as before)."""
+    rule says it falls (the probable classes the library has are searched, as before). Classes `off`
+    the push's way (_off_push) are never among the nearest: the rule reads the walker's own gait
+    into its verdict as the classifier does, and a step across a push from behind is no nearer
+    than keeping the walk (a sway is never off the push, so one is always left to name)."""
     if verdict.steps is None:  # the rule says it falls: any fall the library has will do
         return None
     wanted = predicted if predicted is not None and not is_fall(predicted) else verdict.reaction
-    near = list(dict.fromkeys([wanted, *NEAR[wanted], verdict.reaction, *NEAR[verdict.reaction]]))
+    near = [slug for slug in dict.fromkeys([wanted, *NEAR[wanted], verdict.reaction, *NEAR[verdict.reaction]])
+            if slug not in off] or [SWAY]  # fmt: skip
     usable = [slug for slug in near if slug in library.class_ranges]
     why = "the push does not fell the character"
     if usable:
@@ -650,7 +659,7 @@ def _missing_class(
     standing = [slug for slug in library.class_ranges if not is_fall(slug)]
     lacks = (", ".join(near[:-1]) + " or " if len(near) > 1 else "") + near[-1] if standing else "step or sway"
     return _Choice(None, f"the library has no {lacks} clips: kept the original motion, the hit simulated "
-                         f"({why})", wanted)  # fmt: skip
+                         f"({why})", near[0])  # fmt: skip
 
 
 def _going_down(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact, library: Library) -> str | None:

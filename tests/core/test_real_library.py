@@ -21,10 +21,20 @@ import numpy as np
 import pytest
 
 from reactive_anim.core.classify.classifier import load_classifier
+from reactive_anim.core.classify.outcome import Outcome
 from reactive_anim.core.model import bvh
 from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.model.skeleton import Motion, frame_times
-from reactive_anim.core.react import KEPT_CLIP, ReactionSettings, character_ragdoll, react, resume_fade_frames
+from reactive_anim.core.react import (
+    KEPT_CLIP,
+    ReactionSettings,
+    _missing_class,
+    _off_push,
+    _query_ending_at,
+    character_ragdoll,
+    react,
+    resume_fade_frames,
+)
 from reactive_anim.core.search.library import Library, load_library
 from reactive_anim.core.transition.casting import Casting
 from tests.support.mocap import REPO, require_mocap
@@ -292,3 +302,24 @@ def test_without_a_classifier_a_falls_only_library_keeps_a_nudged_walk(tmp_path,
     r = react(sample_walk, Impact(SAMPLE_B, "chest", ahead, 40.0), library, None, ragdoll=sample_ragdoll)
     assert r.kept_motion and r.predicted is None and r.reaction_class == "step_forward"
     assert r.note.startswith("the library has no step or sway clips: kept the original motion"), r.note
+
+
+def test_a_missing_class_is_never_made_up_by_a_class_off_the_push(tmp_path, sample_walk, sample_ragdoll) -> None:
+    """The nearest class for a push the library lacks (react._missing_class) leaves out classes off
+    the push's way, the outcome rule's own included: pushed from behind, with a library whose only
+    standing class is a step to the left and a rule that read the walker's gait as a step left, the
+    walk is kept and the note names what is missing; with nothing left out, the step left plays."""
+    library = _sample_library(tmp_path / "lib", FALLS + ("step_left",))
+    ahead = ground_axes(sample_walk, SAMPLE_B)[0]
+    impact = Impact(SAMPLE_B, "chest", tuple(ahead), 40.0)
+    off = _off_push(sample_walk, impact, sample_ragdoll.rig)
+    assert "step_left" in off and "step_forward" not in off
+    casting = Casting.between(sample_walk, sample_ragdoll.rig, library)
+    query = _query_ending_at(sample_walk, SAMPLE_B + 8, casting, impact)
+    verdict = Outcome("step_left", 1, "left", np.array([0.0, 0.1]), 0.05, 0.4, False)
+    settings = ReactionSettings()
+    kept = _missing_class(library, query, "step_forward", verdict, settings, off)
+    assert kept is not None and kept.match is None and kept.kept_class == "step_forward"
+    assert kept.note.startswith("the library has no step_forward, steps_forward or sway_balance clips: kept"), kept.note
+    across = _missing_class(library, query, "step_forward", verdict, settings)
+    assert across is not None and across.match is not None and across.match.reaction_class == "step_left"
