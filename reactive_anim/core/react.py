@@ -68,7 +68,7 @@ from .model.errors import Cancelled, ImpactError, LibraryError, SkeletonError
 from .model.impact import Impact
 from .model.rig import Rig
 from .model.skeleton import Motion, hold_root, static_root
-from .physics.balance import RootAssist
+from .physics.balance import KEPT_WALK, RootAssist
 from .physics.ragdoll import Ragdoll, build_ragdoll
 from .physics.simulate import SimResult, simulate_push, track
 from .physics.workspace import BC_GAINS, Workspace
@@ -153,6 +153,9 @@ class ReactionSettings:
     assist: the root assist that keeps the body up during CD (balance.py), None for the paper's
       pure PD tracking [RootAssist(): lift at most 0.3 of body weight, torques at most 0.4 m g h, let go
       past 20-40 degrees of tilt].
+    kept_assist: the assist in place of `assist` when the walk is kept through the push (a sway or
+      a single step on a walker), None for pure PD there [balance.KEPT_WALK: torques at most 0.8 m g h,
+      let go past 40-60 degrees: CD held up while it fades back into the walk].
     hold_feet: planted feet keep their footprints where the sources cross-fade, and the body stays
       out of the floor (footing.py) [True; False leaves the feet where the fades put them, sliding].
     soften: the simulated stretch (BC, CD) averaged over time where a joint's acceleration spikes
@@ -168,6 +171,7 @@ class ReactionSettings:
     chain_blend: float = 0.2
     fall_transition: float = 0.95
     assist: RootAssist | None = field(default_factory=RootAssist)
+    kept_assist: RootAssist | None = KEPT_WALK
     hold_feet: bool = True
     soften: bool = True
 
@@ -338,7 +342,8 @@ def react(
     played = carry(_frames(playing, frame_c, steps + 1), before.slice(frame_c, frame_c + 1),
                    round(CARRY_TIME * motion.fps))  # fmt: skip
     target = blend(played, clip_ef, fade_weights(steps + 1))
-    cd = track(ragdoll, bc.state, target, steps / motion.fps, assist=settings.assist, ramp=(BC_GAINS, CD_RAMP),
+    assist = settings.assist if match is not None else settings.kept_assist
+    cd = track(ragdoll, bc.state, target, steps / motion.fps, assist=assist, ramp=(BC_GAINS, CD_RAMP),
                workspace=workspace)  # fmt: skip
     # the simulated stretch: BC from the frames soften reads before the one after the hit, then CD
     hit = int(np.ceil(impact.frame)) + 1
