@@ -40,6 +40,7 @@ from reactive_anim.core.physics.anatomy import ANATOMICAL_LIMITS, HingeRange
 from reactive_anim.core.physics.ragdoll import Ragdoll, build_ragdoll
 from reactive_anim.core.physics.simulate import simulate_impact, track
 from reactive_anim.core.physics.workspace import ServoGains, Workspace
+from reactive_anim.core.transition.soften import soften
 
 from .curves import key_timeline
 from .gaits import walk_clip
@@ -185,9 +186,17 @@ def _trim_settled(motion: Motion) -> Motion:
     )
 
 
+# m/s^2: a fall's clip is softened where a joint's acceleration passes the first, fully from the
+# second (core/transition/soften.py): the physics that makes it stops a limb within a 2 ms step, and
+# the clip, cast onto a taller character, accelerates in proportion to its size. Real falls (CMU)
+# reach 166 at most; the rolls' heads struck the floor at 135-153 on the sample skeleton, 172 cast.
+FALL_SPIKE = (100.0, 130.0)
+
+
 def fall_clip(fall: Fall) -> Motion:
-    """The clip of a fall: its simulation, the still tail cut."""
-    return _trim_settled(simulate_fall(fall).motion)
+    """The clip of a fall: its simulation softened where it spikes (the push's own frame kept), the
+    still tail cut."""
+    return _trim_settled(soften(simulate_fall(fall).motion, 1, FALL_SPIKE))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -43,12 +43,14 @@ SPIKE_FULL = 70.0
 PASSES = 3
 
 
-def soften(motion: Motion, first: int) -> Motion:
+def soften(motion: Motion, first: int, spike: tuple[float, float] = (SPIKE_FROM, SPIKE_FULL)) -> Motion:
     """`motion` with its frames from `first` on averaged over time where a joint's acceleration
     spikes, up to PASSES times while one still does (see the module docstring); the frames before
-    `first` are read (context_frames of them), never changed, and so is every frame not softened."""
+    `first` are read (context_frames of them), never changed, and so is every frame not softened.
+    spike: the accelerations (m/s^2) from which a frame is softened, and fully (a fall's clip, made
+    by the same physics, spikes only where it outdoes real falls)."""
     for _ in range(PASSES):
-        softened = _pass(motion, first)
+        softened = _pass(motion, first, spike)
         if softened is motion:
             break
         motion = softened
@@ -68,7 +70,7 @@ def _reach(fps: float) -> int:
     return max(1, math.ceil(2.0 * SIGMA * fps))
 
 
-def _pass(motion: Motion, first: int) -> Motion:
+def _pass(motion: Motion, first: int, spike: tuple[float, float]) -> Motion:
     """One pass of soften: `motion` itself where nothing spikes."""
     n = motion.num_frames
     if first >= n:
@@ -76,7 +78,7 @@ def _pass(motion: Motion, first: int) -> Motion:
     stride, reach = _stride(motion.fps), _reach(motion.fps)
     lo = max(first - stride, 0)
     spikes = np.zeros(n)
-    spikes[lo:] = _spikes(motion.slice(lo, n).global_positions(), stride, motion.fps)
+    spikes[lo:] = _spikes(motion.slice(lo, n).global_positions(), stride, motion.fps, spike)
     amount = _widened(spikes, stride + reach)
     rows = first + np.flatnonzero(amount[first:] > 0)  # the frames softened: no other is written
     if not len(rows):
@@ -106,15 +108,15 @@ def _mean(values: FloatArray, weights: FloatArray) -> FloatArray:
     return np.moveaxis(values, 1, -1) @ weights
 
 
-def _spikes(positions: FloatArray, stride: int, fps: float) -> FloatArray:
+def _spikes(positions: FloatArray, stride: int, fps: float, spike: tuple[float, float]) -> FloatArray:
     """(T,) how much each frame's largest joint acceleration (positions (T, J, 3), second
-    differences over `stride` frames) calls for softening: 0 up to SPIKE_FROM, 1 from SPIKE_FULL;
+    differences over `stride` frames) calls for softening: 0 up to spike[0], 1 from spike[1];
     0 where the stride leaves the frames."""
     out = np.zeros(len(positions))
     if len(positions) > 2 * stride:
         second = positions[2 * stride :] - 2.0 * positions[stride:-stride] + positions[: -2 * stride]
         largest = np.linalg.norm(second, axis=-1).max(axis=1) * (fps / stride) ** 2
-        out[stride:-stride] = np.clip((largest - SPIKE_FROM) / (SPIKE_FULL - SPIKE_FROM), 0.0, 1.0)
+        out[stride:-stride] = np.clip((largest - spike[0]) / (spike[1] - spike[0]), 0.0, 1.0)
     return out
 
 
