@@ -154,8 +154,9 @@ class ReactionSettings:
       pure PD tracking [RootAssist(): lift at most 0.3 of body weight, torques at most 0.4 m g h, let go
       past 20-40 degrees of tilt].
     kept_assist: the assist in place of `assist` when the walk is kept through the push (a sway or
-      a single step on a walker), None for pure PD there [balance.KEPT_WALK: torques at most 0.8 m g h,
-      let go past 40-60 degrees: CD held up while it fades back into the walk].
+      a single step on a walker), None for pure PD there [balance.KEPT_WALK: lift up to 0.8 of the
+      weight, torques at most 0.8 m g h, let go past 60-90 degrees: CD held up while it fades back
+      into the walk].
     hold_feet: planted feet keep their footprints where the sources cross-fade, and the body stays
       out of the floor (footing.py) [True; False leaves the feet where the fades put them, sliding].
     soften: the simulated stretch (BC, CD) averaged over time where a joint's acceleration spikes

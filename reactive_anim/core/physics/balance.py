@@ -60,11 +60,12 @@ class RootAssist:
 
 
 # The assist for a walk kept through a push (react: a sway or a single step on a walker): the push
-# did not upset the walk, so CD is held up twice as hard and let go only past 40-60 degrees of tilt
-# while it fades back into the walk. With RootAssist's own settings the tracked body sank 20 cm or
-# more below the walk by F in 458 of 1128 kept walks and 271 of 486 kept runs on the shared mocap
-# (a walker dipping and pulled back up by the fade); with these, 247 and 161 (docs/measurements.md).
-KEPT_WALK = RootAssist(max_fraction=0.8, fade_start=math.radians(40.0), fade_end=math.radians(60.0))
+# did not upset the walk, so CD is held up while it fades back into it: the lift may bear up to 0.8
+# of the weight, the torques 0.8 m g h, and it lets go only past 60-90 degrees of tilt. With
+# RootAssist's own settings the tracked body sank 20 cm or more below the walk by F in 458 of 1128
+# kept walks and 271 of 486 kept runs on the shared mocap (a walker dipping, or diving face first,
+# and pulled back up by the fade); with these, 75 and 65 (docs/measurements.md).
+KEPT_WALK = RootAssist(max_fraction=0.8, lift_fraction=0.8, fade_start=math.radians(60.0), fade_end=math.radians(90.0))
 
 
 class AssistController:

@@ -60,8 +60,9 @@ SOFT_REACH = 0.95  # of a leg's length: a held foot asking more of it reaches le
 MAX_OFFSET = 0.4
 # m/s over the ground, held: a foot a fade still moves faster than this along the floor is lifted ...
 # (at 1.0 m/s with a 0.5 band, fades slid planted feet up to 8.8 cm at 0.5-0.9 m/s, under the lift,
-# the hold letting them go as the fade swept them at 2-3 m/s: docs/measurements.md)
-SWING_SPEED = 0.4
+# the hold letting them go as the fade swept them at 2-3 m/s; at 0.4, a held foot the leg could
+# no longer reach slid 5.2 cm at 0.3 m/s just before it lifted: docs/measurements.md)
+SWING_SPEED = 0.25
 SWING_BAND = 0.3  # ... fully from this much faster (a held foot moves at a few cm/s; a swing at 3-5 m/s) ...
 SWING_CLEARANCE = 0.04  # m: ... to this over the floor (above model/floor.py's ramp: it no longer stands) ...
 SWING_EASE = 0.08  # s: ... eased in and out over this either side (a foot's lift onto the floor too)
