@@ -153,10 +153,10 @@ class ReactionSettings:
     assist: the root assist that keeps the body up during CD (balance.py), None for the paper's
       pure PD tracking [RootAssist(): lift at most 0.3 of body weight, torques at most 0.4 m g h, let go
       past 20-40 degrees of tilt].
-    kept_assist: the assist in place of `assist` when the walk is kept through the push (a sway or
-      a single step on a walker), None for pure PD there [balance.KEPT_WALK: lift up to 0.8 of the
-      weight, torques at most 0.8 m g h, let go past 60-90 degrees: CD held up while it fades back
-      into the walk].
+    kept_assist: the assist in place of `assist` when the motion is kept through the push (a sway
+      or a single step on a walker, or a push whose class the library lacks), None for pure PD
+      there [balance.KEPT_WALK: lift up to 0.8 of the weight, torques at most 0.8 m g h, let go
+      past 60-90 degrees: CD held up while it fades back into the motion].
     hold_feet: planted feet keep their footprints where the sources cross-fade, and the body stays
       out of the floor (footing.py) [True; False leaves the feet where the fades put them, sliding].
     soften: the simulated stretch (BC, CD) averaged over time where a joint's acceleration spikes
@@ -641,7 +641,7 @@ def _missing_class(
     predicted: str | None,
     verdict: Outcome,
     settings: ReactionSettings,
-    off: frozenset[str] = frozenset(),
+    off: frozenset[str],
 ) -> _Choice | None:
     """A push whose class the library lacks: when the outcome rule says it keeps its feet, the
     nearest class the library has that keeps them (NEAR, from the class the push calls for: the

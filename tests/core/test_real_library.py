@@ -321,5 +321,5 @@ def test_a_missing_class_is_never_made_up_by_a_class_off_the_push(tmp_path, samp
     kept = _missing_class(library, query, "step_forward", verdict, settings, off)
     assert kept is not None and kept.match is None and kept.kept_class == "step_forward"
     assert kept.note.startswith("the library has no step_forward, steps_forward or sway_balance clips: kept"), kept.note
-    across = _missing_class(library, query, "step_forward", verdict, settings)
+    across = _missing_class(library, query, "step_forward", verdict, settings, frozenset())
     assert across is not None and across.match is not None and across.match.reaction_class == "step_left"
