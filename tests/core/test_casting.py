@@ -73,9 +73,11 @@ def test_the_same_push_on_a_renamed_skeleton_picks_the_same_class_clip_and_frame
     assert moved[:, body].max() < 0.005  # retargeting the clip onto the same body changes it by IK round-off
     # The feet hold (footing.py) weighs a foot's contact over a 2 cm band of height, and brings
     # limbs out of the floor where they are under it: the clip's millimetres of round-off move a
-    # held foot or a hand on the floor by up to a few times as much. Without the hold, every joint
-    # stays within the round-off.
-    assert moved[:, limbs].max() < 0.03
+    # held foot or a hand on the floor by up to a few times as much. It also turns a foot no faster
+    # than LANDING_ACCEL, which carries a foot's pace on for a few frames: round-off in the frame a
+    # held foot lifts moved it in the air by 3.6 cm (the fall at 250 N·s; 1.3 cm without that
+    # limit). Without the hold, every joint stays within the round-off.
+    assert moved[:, limbs].max() < 0.04
     raw = ReactionSettings(hold_feet=False)
     here = react(WALK, Impact(frame, role, direction, strength), library, classifier, raw)
     there = react(renamed, Impact(frame, roles[role], direction, strength), library, classifier, raw)

@@ -4,7 +4,8 @@
   stood, up to the hold's limit (beyond it the feet slide the rest, lifted clear of the floor where
   they go fast), and to the end where they never lift; a walker's hold is let go in the air and
   the walk after it is untouched; a drag outside the fades is the motion's own; a foot lifting off
-  is not held for its first slow frames (let go, it jumped).
+  is not held for its first slow frames (let go, it jumped); a foot brought down fast is stopped
+  over a few frames, not in one.
 - Reactions on the sample walk slide their feet less than half as far as without the hold, and
   no foot goes through the floor (without the hold, toes went up to 4 cm under).
 - A hand under the floor is lifted straight up onto it, keeping its turn; a hand already under it
@@ -29,6 +30,7 @@ from reactive_anim.core.react import ReactionSettings, character_ragdoll, react
 from reactive_anim.core.search.library import load_library
 from reactive_anim.core.transition.footing import (
     CATCH_UP_FINISH,
+    LANDING_ACCEL,
     LIFT_EASE,
     MAX_OFFSET,
     SWING_BAND,
@@ -136,6 +138,27 @@ def test_a_foot_lifting_off_is_not_held_for_its_first_slow_frames():
     for side in "lr":
         own, kept = (point_acceleration(m, side)[window].max() for m in (moved, held))
         assert kept <= 1.05 * own, (side, kept, own)
+
+
+def test_a_foot_the_fade_brings_down_fast_is_stopped_over_a_few_frames():
+    """The stance dragged at up to 4.2 m/s, then at 2.4 m/s slowing evenly to a stop,
+    while the sources cross-fade: a landing foot, as a fade brings one in (fast, so not held, then
+    slow at once). Held from its first slow frame, it stopped from 2.4 m/s in one frame (144 m/s^2
+    along the floor, the motion's own change there 18); now the hold turns it no faster than the
+    motion does or LANDING_ACCEL, whichever is more, nothing sharper than the motion's own drop
+    from 4.2 to 2.4 m/s, and it stands within a few frames."""
+    pace = np.zeros(IDLE.num_frames)  # m per frame at the idle's 60 fps
+    slowing = np.arange(0.04, 0.0, -0.005)
+    pace[START : START + 12 + len(slowing)] = np.r_[np.linspace(0.01, 0.07, 7), [0.07] * 5, slowing]
+    moved = replace(IDLE, root_pos=IDLE.root_pos + np.c_[np.cumsum(pace), np.zeros((IDLE.num_frames, 2))])
+    held = hold_feet(moved, RIG, (START - 10, START + FRAMES), [(START - 10, START + FRAMES)], sole(moved))
+    for side in "lr":
+        own, kept = (np.linalg.norm(np.diff(contact_points(m, side)[:, :2], 2, axis=0), axis=1) * IDLE.fps**2
+                     for m in (moved, held))  # fmt: skip
+        assert (kept - np.maximum(own, LANDING_ACCEL)).max() <= 1.0, (side, kept[START - 2 : START + 12].round(1))
+        assert kept.max() <= own.max() + 1.0  # nothing sharper than the motion's own drop to 2.4 m/s
+        rest = contact_points(held, side)[START + 20 :, :2]  # the motion goes on 10 cm
+        assert np.linalg.norm(rest - rest[0], axis=1).max() < 0.01
 
 
 def point_acceleration(motion: Motion, side: str) -> np.ndarray:

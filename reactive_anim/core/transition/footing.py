@@ -16,7 +16,9 @@ stance) is not held but lifted clear of it, as a step would (_swing_lift): measu
 what the fades slid was such sweeps (docs/measurements.md). The hold runs on until every offset
 is let go (a foot that never lifts keeps it to the end of the motion). A foot stands by ramps,
 not thresholds (see _sliding), so a millimetre's difference in the motion moves the result by
-little. Where a leg cannot reach, the offset is capped (MAX_OFFSET) and the foot slides the rest.
+little, and the hold stops a foot no more sharply than LANDING_ACCEL (a foot a fade brings in
+fast lands over a few frames, not in one). Where a leg cannot reach, the offset is capped
+(MAX_OFFSET) and the foot slides the rest.
 From the impact to the end of the reaction, a foot whose lowest point is under the character's
 floor (the lowest its feet get in its own motion) is also lifted onto it: the ragdoll's soles and
 the skeleton's toes do not quite agree, and toes went centimetres under the floor in transitions.
@@ -63,6 +65,11 @@ MAX_OFFSET = 0.4
 # the hold letting them go as the fade swept them at 2-3 m/s; at 0.4, a held foot the leg could
 # no longer reach slid 5.2 cm at 0.3 m/s just before it lifted: docs/measurements.md)
 SWING_SPEED = 0.25
+# m/s^2: the hold changes a foot's velocity over the ground at most this fast (or as fast as the
+# motion itself does). A held foot the fade brought down at 4 m/s was stopped in one frame: a toe
+# at 126 m/s^2 (kept runs; over the walks' largest in 57 of 272 40 N·s pushes on runs where the
+# unpushed run was not). At 40, the same within a point; docs/measurements.md
+LANDING_ACCEL = 60.0
 SWING_BAND = 0.3  # ... fully from this much faster (a held foot moves at a few cm/s; a swing at 3-5 m/s) ...
 SWING_CLEARANCE = 0.04  # m: ... to this over the floor (above model/floor.py's ramp: it no longer stands) ...
 SWING_EASE = 0.08  # s: ... eased in and out over this either side (a foot's lift onto the floor too)
@@ -124,7 +131,8 @@ def _hold(
     for side in SIDES:
         ankle = joint[f"ankle_{side}"]
         down, slide = _sliding(points[side], floor, motion.fps)
-        offset = _offsets(down, np.where(fading[:, None], slide, 0.0), motion.fps, MAX_OFFSET * leg)
+        steps = np.diff(pos[:, ankle, :2], axis=0)
+        offset = _offsets(down, np.where(fading[:, None], slide, 0.0), steps, motion.fps, MAX_OFFSET * leg)
         lift = _eased_lift(np.where(reaction, np.maximum(floor - points[side][..., 2].min(axis=1), 0.0), 0.0), ease)
         lift += _swing_lift(points[side] + lift[:, None, None] * UP, offset, fading, floor, ease, motion.fps)
         moves = (np.abs(offset).max(axis=1) > 1e-6) | (lift > 1e-6)
@@ -258,11 +266,13 @@ def _eased_lift(need: FloatArray, ease: int) -> FloatArray:
     return lift
 
 
-def _offsets(down: FloatArray, slide: FloatArray, fps: float, most: float) -> FloatArray:
+def _offsets(down: FloatArray, slide: FloatArray, steps: FloatArray, fps: float, most: float) -> FloatArray:
     """(T, 2) the ankle's ground offset per frame (row 0, the frame before the range, is zero): the
     slide taken back, at most `most` (m; beyond, the foot slides: MAX_OFFSET); let go in the air
     (1 - down) at CATCH_UP_RATE, fast while it is large and slowing as it shrinks, so the foot
-    eases onto the motion's path instead of stopping short on it."""
+    eases onto the motion's path instead of stopping short on it; never turning the foot faster
+    than the motion does (`steps`: the ankle's own steps over the ground, (T - 1, 2)) or
+    LANDING_ACCEL, whichever is more (_landing)."""
     offset = np.zeros((len(slide) + 1, 2))
     for t in range(1, len(offset)):
         held = offset[t - 1] - slide[t - 1]
@@ -271,8 +281,23 @@ def _offsets(down: FloatArray, slide: FloatArray, fps: float, most: float) -> Fl
             air = 1.0 - down[t - 1]
             let_go = size * np.exp(-air * CATCH_UP_RATE / fps) - air * CATCH_UP_FINISH / fps
             held *= min(most, max(0.0, let_go)) / size
+        if t >= 2:
+            held = _landing(held, offset[t - 2 : t], steps[t - 2 : t], LANDING_ACCEL / fps**2)
         offset[t] = held
     return offset
+
+
+def _landing(held: FloatArray, before: FloatArray, steps: FloatArray, most: float) -> FloatArray:
+    """The offset `held` into a frame moved back along the foot's path so that the foot's step into
+    the frame differs from its step into the frame before by at most `most` (m per frame per
+    frame) or by what the motion's own steps differ, whichever is more: a foot the fade brings down
+    fast is then stopped over two or three frames, a few cm further on, as a landing foot is,
+    rather than in one. before: the offsets into the two frames before; steps: the motion's steps
+    into the frame before and into this one."""
+    change = steps[1] - steps[0] + held - 2.0 * before[1] + before[0]
+    size = float(np.linalg.norm(change))
+    allowed = max(float(np.linalg.norm(steps[1] - steps[0])), most)
+    return held if size <= allowed else held - change * (1.0 - allowed / size)
 
 
 def lift_onto_floor(motion: Motion, frames: tuple[int, int], floor: float) -> Motion:
