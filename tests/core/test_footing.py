@@ -11,7 +11,8 @@
 - A hand under the floor is lifted straight up onto it, keeping its turn; a hand already under it
   at the hit keeps that depth.
 - A body sunk into the floor (knees, hands, a head through a roll's fade) is lifted whole onto it,
-  eased in and out; frames before the reaction stay.
+  eased in and out; frames before the reaction stay. A foot deep in the floor is lifted by its leg
+  only so far; the body's lift takes the rest.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from reactive_anim.core.react import ReactionSettings, character_ragdoll, react
 from reactive_anim.core.search.library import load_library
 from reactive_anim.core.transition.footing import (
     CATCH_UP_FINISH,
+    FOOT_LIFT_MOST,
     LANDING_ACCEL,
     LIFT_EASE,
     MAX_OFFSET,
@@ -259,6 +261,23 @@ def test_a_hand_under_the_floor_is_lifted_onto_it_keeping_its_turn():
     assert np.allclose(new_pos[rows][:, shoulders], pos[rows][:, shoulders], atol=1e-6)
     assert np.allclose(quat.angle_between(new_glob[rows][:, wrists], glob[rows][:, wrists]), 0.0, atol=1e-6)
     assert np.array_equal(held.local_rot[:START], sunk.local_rot[:START])
+
+
+def test_a_foot_deep_in_the_floor_is_lifted_by_the_leg_only_so_far_and_the_body_takes_the_rest():
+    """The idle sunk 0.3 m into the floor, eased over 20 frames (a fade of a thrown body into a
+    kneeling clip put a foot that deep): the legs lift the feet by FOOT_LIFT_MOST at most (lifting
+    it all, a knee folded up over the hip and dropped 70 cm in three frames), and the body's lift
+    (lift_onto_floor) brings every foot point onto the floor."""
+    depth = 0.3 * np.clip((np.arange(IDLE.num_frames) - START) / 20.0, 0.0, 1.0)
+    sunk = replace(IDLE, root_pos=IDLE.root_pos - np.c_[np.zeros((IDLE.num_frames, 2)), depth])
+    floor, frames = sole(IDLE), (START - 10, IDLE.num_frames)
+    held = hold_feet(sunk, RIG, frames, [], floor)
+    raised = held.global_positions() - sunk.global_positions()
+    ankles = [RIG.joints[f"ankle_{side}"] for side in "lr"]
+    assert raised[:, ankles, 2].max() == pytest.approx(FOOT_LIFT_MOST, abs=0.005)
+    lifted = lift_onto_floor(held, frames, floor)
+    for side in "lr":
+        assert contact_points(lifted, side)[START - 10 :, 2].min() > floor - 1e-6
 
 
 def _drag_rows() -> np.ndarray:

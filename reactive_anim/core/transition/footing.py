@@ -23,7 +23,8 @@ From the impact to the end of the reaction, a foot whose lowest point is under t
 floor (the lowest its feet get in its own motion) is also lifted onto it: the ragdoll's soles and
 the skeleton's toes do not quite agree, and toes went centimetres under the floor in transitions.
 That lift is eased in and out over SWING_EASE like the swing's: dropped in the frame a foot rose
-out of the floor by itself, it turned a knee from 1 to 11 rad/s in a frame at C. A hand under the
+out of the floor by itself, it turned a knee from 1 to 11 rad/s in a frame at C. The leg lifts a
+foot by FOOT_LIFT_MOST at most; the body's lift below takes the rest. A hand under the
 floor there is lifted onto it by the arm's IK, as a foot is: a fade between two poses whose hands
 both clear the floor can pass one under it, and a clip cast onto longer arms puts the hands a few
 cm under (docs/measurements.md). Knees a fade puts under the floor cannot be lifted so: with the
@@ -73,6 +74,11 @@ LANDING_ACCEL = 60.0
 SWING_BAND = 0.3  # ... fully from this much faster (a held foot moves at a few cm/s; a swing at 3-5 m/s) ...
 SWING_CLEARANCE = 0.04  # m: ... to this over the floor (above model/floor.py's ramp: it no longer stands) ...
 SWING_EASE = 0.08  # s: ... eased in and out over this either side (a foot's lift onto the floor too)
+# m: the most the leg lifts a foot out of the floor; deeper, the body is lifted (lift_onto_floor). A
+# fade from a body the push threw flat into a kneeling clip put a foot 30 cm under the floor: the
+# leg lifting it all folded the knee up over the hip and dropped it 70 cm in three frames (240
+# m/s^2; four of the reactions over the real falls' largest, docs/measurements.md)
+FOOT_LIFT_MOST = 0.15
 UP = np.array([0.0, 0.0, 1.0])
 SETTLE = 1.0  # s after the reaction first looked at for the offsets to be let go (a walker's feet lift in it)
 LIFT_EASE = 0.15  # s over which the body is lifted onto the floor before and after the deepest frame
@@ -133,7 +139,8 @@ def _hold(
         down, slide = _sliding(points[side], floor, motion.fps)
         steps = np.diff(pos[:, ankle, :2], axis=0)
         offset = _offsets(down, np.where(fading[:, None], slide, 0.0), steps, motion.fps, MAX_OFFSET * leg)
-        lift = _eased_lift(np.where(reaction, np.maximum(floor - points[side][..., 2].min(axis=1), 0.0), 0.0), ease)
+        sunk = np.minimum(np.maximum(floor - points[side][..., 2].min(axis=1), 0.0), FOOT_LIFT_MOST)
+        lift = _eased_lift(np.where(reaction, sunk, 0.0), ease)
         lift += _swing_lift(points[side] + lift[:, None, None] * UP, offset, fading, floor, ease, motion.fps)
         moves = (np.abs(offset).max(axis=1) > 1e-6) | (lift > 1e-6)
         still_held = still_held or bool(np.abs(offset[-1]).max() > 1e-6)
