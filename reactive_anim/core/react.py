@@ -742,9 +742,12 @@ def _resume_or_hold(
     re-entering at a frame from `first` to a second past where the fade starts (the resumed motion
     stays near the timeline's own time: a walk repeats within a second, and later markers still
     land where the animator put them) and leaving the source two fades' frames to play; else hold
-    the last pose. Either way the result runs at least to the source's end (a re-entry up to a
-    second ahead ends that much sooner: the last pose is held). Also returns the source's frame it
-    re-entered at (None: held) and the fade's frames [a, b) (none when held)."""
+    the last pose. Either way the result runs at least to the source's end: a re-entry ahead runs
+    the source out that much sooner, and the source is then re-entered once more where it best
+    continues its own end, at a frame no later than the output's (held, a runner froze mid-stride
+    at the action's end: a toe stopped dead at 257 m/s^2); the last pose is held only where there
+    is no room for that fade. Also returns the source's frame it first re-entered at (None: held)
+    and the fades' frames [a, b) (none when held)."""
     earliest = out.num_frames - window if earliest is None else max(0, min(earliest, out.num_frames - window))
     resumed_at, fades = None, []
     fade = resume_fade_frames(window, out.fps)
@@ -753,6 +756,12 @@ def _resume_or_hold(
     if window and latest_entry > first:
         out, resumed_at, faded = _resume(out, source, first, window, fade, rig, earliest)
         fades = [faded]
+        if out.num_frames < source.num_frames and out.num_frames - window >= faded[1]:
+            # re-entered ahead, the source ran out early: it plays on from where it best continues
+            # its own end (a walk's or a run's earlier cycle), rather than a pose held mid-stride
+            out, _, again = _resume(out, source, 0, window, fade, rig, faded[1], no_shorter=True)
+            out = out.slice(0, max(source.num_frames, again[1]))  # an earlier cycle need not outlast the source
+            fades.append(again)
     missing = source.num_frames - out.num_frames  # a bake never shortens the action
     if missing > 0:
         hold = out.slice(out.num_frames - 1, out.num_frames)
@@ -761,7 +770,15 @@ def _resume_or_hold(
 
 
 def _resume(
-    out: Motion, source: Motion, first: int, window: int, fade: int, rig: Rig, earliest: int
+    out: Motion,
+    source: Motion,
+    first: int,
+    window: int,
+    fade: int,
+    rig: Rig,
+    earliest: int,
+    *,
+    no_shorter: bool = False,
 ) -> tuple[Motion, int, tuple[int, int]]:
     """The source's best re-entry window (Eq. 1, at source frames from `first` to a second past the
     fade's start) aligned with `out`'s `window` frames from the best fade start (from `earliest` to
@@ -772,8 +789,9 @@ def _resume(
     a stand resumes where the clip has come to rest, which matches it far better). Starts and
     entries are tried every `stride` frames (about RESUME_RATE a second: a 120 fps take would
     otherwise try 16 times as many pairs), starts only within RESUME_SEARCH of `earliest` (waiting
-    longer costs more than the re-entries' Eq. 1 costs differ). Returns the motion, the source frame
-    re-entered at and the fade's frames [start, end)."""
+    longer costs more than the re-entries' Eq. 1 costs differ). no_shorter: only re-entries at or
+    before the fade's start on the source's clock, so the result runs at least to the source's
+    end. Returns the motion, the source frame re-entered at and the fade's frames [start, end)."""
     stride = max(1, round(out.fps / RESUME_RATE))
     latest = min(out.num_frames - window, earliest + round(RESUME_SEARCH * out.fps))
     stop = min(source.num_frames, latest + round(source.fps))  # re-entries a second past the latest start
@@ -790,7 +808,7 @@ def _resume(
             break  # Eq. 1 costs are never negative: no later start can win
         query = Query(tails.rows(slice(k, k + span)))
         # re-entries up to a second past the start that leave the source RESUME_LEFT fades
-        last = min(stop - RESUME_LEFT * fade, start + round(source.fps) - window)
+        last = min(stop - RESUME_LEFT * fade, start + round(source.fps) - window, start if no_shorter else stop)
         entries = min((last - first) // stride + 1, candidates.num_frames - span + 1)
         if entries <= 0 or query.window < span:
             continue
