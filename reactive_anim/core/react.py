@@ -742,26 +742,24 @@ def _resume_or_hold(
     re-entering at a frame from `first` to a second past where the fade starts (the resumed motion
     stays near the timeline's own time: a walk repeats within a second, and later markers still
     land where the animator put them) and leaving the source two fades' frames to play; else hold
-    the last pose. Either way the result runs at least to the source's end: a re-entry ahead runs
-    the source out that much sooner, and the source is then re-entered once more where it best
-    continues its own end, at a frame no later than the output's (held, a runner froze mid-stride
-    at the action's end: a toe stopped dead at 257 m/s^2); the last pose is held only where there
-    is no room for that fade. Also returns the source's frame it first re-entered at (None: held)
-    and the fades' frames [a, b) (none when held)."""
+    the last pose. Either way the result runs at least to the source's end: a re-entry ahead would
+    run the source out that much sooner and hold its last pose (a runner froze mid-stride at the
+    action's end, a toe stopped dead at 257 m/s^2), so where it would, the re-entry is searched
+    again among the source's frames no later than the output's own (an earlier cycle of a walk or
+    a run). Also returns the source's frame it re-entered at (None: held) and the fade's frames
+    [a, b) (none when held)."""
     earliest = out.num_frames - window if earliest is None else max(0, min(earliest, out.num_frames - window))
     resumed_at, fades = None, []
     fade = resume_fade_frames(window, out.fps)
     left = RESUME_LEFT * fade  # the source's frames a re-entry leaves
     latest_entry = min(source.num_frames - left, out.num_frames + round(source.fps) - window)
     if window and latest_entry > first:
-        out, resumed_at, faded = _resume(out, source, first, window, fade, rig, earliest)
-        fades = [faded]
-        if out.num_frames < source.num_frames and out.num_frames - window >= faded[1]:
-            # re-entered ahead, the source ran out early: it plays on from where it best continues
-            # its own end (a walk's or a run's earlier cycle), rather than a pose held mid-stride
-            out, _, again = _resume(out, source, 0, window, fade, rig, faded[1], no_shorter=True)
-            out = out.slice(0, max(source.num_frames, again[1]))  # an earlier cycle need not outlast the source
-            fades.append(again)
+        resumed, resumed_at, faded = _resume(out, source, first, window, fade, rig, earliest)
+        if resumed.num_frames < source.num_frames:
+            # re-entered ahead, the source would run out before the action ends and its last pose
+            # be held mid-stride: re-entered no later than its own time instead (an earlier cycle)
+            resumed, resumed_at, faded = _resume(out, source, first, window, fade, rig, earliest, no_shorter=True)
+        out, fades = resumed, [faded]
     missing = source.num_frames - out.num_frames  # a bake never shortens the action
     if missing > 0:
         hold = out.slice(out.num_frames - 1, out.num_frames)
@@ -808,7 +806,9 @@ def _resume(
             break  # Eq. 1 costs are never negative: no later start can win
         query = Query(tails.rows(slice(k, k + span)))
         # re-entries up to a second past the start that leave the source RESUME_LEFT fades
-        last = min(stop - RESUME_LEFT * fade, start + round(source.fps) - window, start if no_shorter else stop)
+        last = min(stop - RESUME_LEFT * fade, start + round(source.fps) - window)
+        if no_shorter:
+            last = min(last, start)
         entries = min((last - first) // stride + 1, candidates.num_frames - span + 1)
         if entries <= 0 or query.window < span:
             continue

@@ -38,6 +38,7 @@ from reactive_anim.core.transition.footing import (
     SWING_BAND,
     SWING_CLEARANCE,
     SWING_SPEED,
+    _offsets,
     hold_feet,
     lift_onto_floor,
 )
@@ -145,8 +146,8 @@ def test_a_foot_lifting_off_is_not_held_for_its_first_slow_frames():
 def test_a_foot_the_fade_brings_down_fast_is_stopped_over_a_few_frames():
     """The stance dragged at up to 4.2 m/s, then at 2.4 m/s slowing evenly to a stop,
     while the sources cross-fade: a landing foot, as a fade brings one in (fast, so not held, then
-    slow at once). Held from its first slow frame, it stopped from 2.4 m/s in one frame (144 m/s^2
-    along the floor, the motion's own change there 18); now the hold turns it no faster than the
+    slow at once). Held from its first slow frame, it stopped from 4.2 m/s in one frame (252 m/s^2
+    along the floor, the motion's own change there 108); now the hold turns it no faster than the
     motion does or LANDING_ACCEL, whichever is more, nothing sharper than the motion's own drop
     from 4.2 to 2.4 m/s, and it stands within a few frames."""
     pace = np.zeros(IDLE.num_frames)  # m per frame at the idle's 60 fps
@@ -159,7 +160,7 @@ def test_a_foot_the_fade_brings_down_fast_is_stopped_over_a_few_frames():
                      for m in (moved, held))  # fmt: skip
         assert (kept - np.maximum(own, LANDING_ACCEL)).max() <= 1.0, (side, kept[START - 2 : START + 12].round(1))
         assert kept.max() <= own.max() + 1.0  # nothing sharper than the motion's own drop to 2.4 m/s
-        rest = contact_points(held, side)[START + 20 :, :2]  # the motion goes on 10 cm
+        rest = contact_points(held, side)[START + 13 :, :2]  # the motion goes on 10.5 cm from here
         assert np.linalg.norm(rest - rest[0], axis=1).max() < 0.01
 
 
@@ -180,6 +181,17 @@ def test_a_drag_beyond_the_hold_slides_the_feet_by_the_rest():
         points = contact_points(held, side)
         travel = np.linalg.norm(points[START + FRAMES - 1, :2] - points[START - 1, :2])
         assert travel == pytest.approx(0.15, abs=0.01)
+
+
+def test_the_hold_never_passes_its_cap_while_it_eases_a_foot_to_a_stop():
+    """A standing foot dragged at 4.8 m/s for half a second, all of it taken back: the offset grows
+    to the cap and stays there (beyond it the foot slides). Limiting how sharply the hold stops a
+    foot (LANDING_ACCEL) once carried the offset on past the cap, to 0.47 m against 0.36."""
+    steps = np.zeros((60, 2))
+    steps[10:40, 0] = 0.08  # m per frame at 60 fps
+    offset = _offsets(np.ones(60), steps.copy(), steps, 60.0, 0.36)
+    assert np.linalg.norm(offset, axis=1).max() <= 0.36 + 1e-9
+    assert np.linalg.norm(offset[40]) == pytest.approx(0.36)
 
 
 def test_a_foot_a_fade_sweeps_along_the_floor_is_lifted_clear_and_eased():

@@ -277,9 +277,9 @@ def _offsets(down: FloatArray, slide: FloatArray, steps: FloatArray, fps: float,
     """(T, 2) the ankle's ground offset per frame (row 0, the frame before the range, is zero): the
     slide taken back, at most `most` (m; beyond, the foot slides: MAX_OFFSET); let go in the air
     (1 - down) at CATCH_UP_RATE, fast while it is large and slowing as it shrinks, so the foot
-    eases onto the motion's path instead of stopping short on it; never turning the foot faster
-    than the motion does (`steps`: the ankle's own steps over the ground, (T - 1, 2)) or
-    LANDING_ACCEL, whichever is more (_landing)."""
+    eases onto the motion's path instead of stopping short on it; never changing the foot's
+    velocity over the ground faster than the motion does (`steps`: the ankle's own steps over the
+    ground, (T - 1, 2)) or LANDING_ACCEL, whichever is more (_landing)."""
     offset = np.zeros((len(slide) + 1, 2))
     for t in range(1, len(offset)):
         held = offset[t - 1] - slide[t - 1]
@@ -290,12 +290,14 @@ def _offsets(down: FloatArray, slide: FloatArray, steps: FloatArray, fps: float,
             held *= min(most, max(0.0, let_go)) / size
         if t >= 2:
             held = _landing(held, offset[t - 2 : t], steps[t - 2 : t], LANDING_ACCEL / fps**2)
+            size = float(np.linalg.norm(held))
+            held *= min(1.0, most / max(size, 1e-12))  # the cap still holds: beyond it, the foot slides
         offset[t] = held
     return offset
 
 
 def _landing(held: FloatArray, before: FloatArray, steps: FloatArray, most: float) -> FloatArray:
-    """The offset `held` into a frame moved back along the foot's path so that the foot's step into
+    """The offset `held` into a frame moved back toward the step it continues so that the foot's step into
     the frame differs from its step into the frame before by at most `most` (m per frame per
     frame) or by what the motion's own steps differ, whichever is more: a foot the fade brings down
     fast is then stopped over two or three frames, a few cm further on, as a landing foot is,

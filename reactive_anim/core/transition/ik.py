@@ -13,8 +13,8 @@ from ..model.skeleton import Skeleton
 # rad: a knee (an elbow) bent less than this is straight, its plane rebuilt. At 5 degrees, a kept
 # walk's knee the IK lifted to 176 degrees was rebuilt for one frame in a plane 80 degrees from its
 # own and flicked 13 cm sideways and back (179 m/s^2; kept in its plane, 125 as the lift straightens
-# it). A bend of 1 degree still puts the knee 7 mm off the hip-ankle line on a 0.4 m thigh, far
-# above float noise
+# it). A bend of 1 degree still puts the knee 3.5 mm off the hip-ankle line of a leg of two 0.4 m
+# bones, far above float noise
 STRAIGHT = np.radians(1.0)
 
 
