@@ -74,7 +74,8 @@ LANDING_ACCEL = 60.0
 SWING_BAND = 0.3  # ... fully from this much faster (a held foot moves at a few cm/s; a swing at 3-5 m/s) ...
 SWING_CLEARANCE = 0.04  # m: ... to this over the floor (above model/floor.py's ramp: it no longer stands) ...
 SWING_EASE = 0.08  # s: ... eased in and out over this either side (a foot's lift onto the floor too)
-# m: the most the leg lifts a foot out of the floor; deeper, the body is lifted (lift_onto_floor). A
+# m: the most the leg lifts a foot out of the floor (a sweep's SWING_CLEARANCE may come on top);
+# deeper, the body is lifted (lift_onto_floor). Hands have no such cap (none was seen to fold). A
 # fade from a body the push threw flat into a kneeling clip put a foot 30 cm under the floor: the
 # leg lifting it all folded the knee up over the hip and dropped it 70 cm in three frames (240
 # m/s^2; four of the reactions over the real falls' largest, docs/measurements.md)
