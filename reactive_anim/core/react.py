@@ -739,27 +739,18 @@ def _resume_or_hold(
     """Resume the source over a fade of resume_fade_frames (`window` frames or more, computed here and
     passed to _resume; `window` 0: do not resume, as after a fall with nothing chained) that starts
     at a frame from `earliest` on (default: the last `window` frames of `out`; see _resume),
-    re-entering at a frame from `first` to a second past where the fade starts (the resumed motion
-    stays near the timeline's own time: a walk repeats within a second, and later markers still
-    land where the animator put them) and leaving the source two fades' frames to play; else hold
-    the last pose. Either way the result runs at least to the source's end: a re-entry ahead would
-    run the source out that much sooner and hold its last pose (a runner froze mid-stride at the
-    action's end, a toe stopped dead at 257 m/s^2), so where it would, the re-entry is searched
-    again among the source's frames no later than the output's own (an earlier cycle of a walk or
-    a run). Also returns the source's frame it re-entered at (None: held) and the fade's frames
-    [a, b) (none when held)."""
+    re-entering at a source frame from `first` to the fade's start (the resumed motion stays near
+    the timeline's own time: a walk repeats within a second, and later markers still land where the
+    animator put them) and leaving the source two fades' frames to play; else hold the last pose.
+    Either way the result runs at least to the source's end. Also returns the source's frame it
+    re-entered at (None: held) and the fade's frames [a, b) (none when held)."""
     earliest = out.num_frames - window if earliest is None else max(0, min(earliest, out.num_frames - window))
     resumed_at, fades = None, []
     fade = resume_fade_frames(window, out.fps)
-    left = RESUME_LEFT * fade  # the source's frames a re-entry leaves
-    latest_entry = min(source.num_frames - left, out.num_frames + round(source.fps) - window)
+    latest_entry = min(source.num_frames - RESUME_LEFT * fade, out.num_frames - window)
     if window and latest_entry > first:
-        resumed, resumed_at, faded = _resume(out, source, first, window, fade, rig, earliest)
-        if resumed.num_frames < source.num_frames:
-            # re-entered ahead, the source would run out before the action ends and its last pose
-            # be held mid-stride: re-entered no later than its own time instead (an earlier cycle)
-            resumed, resumed_at, faded = _resume(out, source, first, window, fade, rig, earliest, no_shorter=True)
-        out, fades = resumed, [faded]
+        out, resumed_at, faded = _resume(out, source, first, window, fade, rig, earliest)
+        fades = [faded]
     missing = source.num_frames - out.num_frames  # a bake never shortens the action
     if missing > 0:
         hold = out.slice(out.num_frames - 1, out.num_frames)
@@ -768,34 +759,28 @@ def _resume_or_hold(
 
 
 def _resume(
-    out: Motion,
-    source: Motion,
-    first: int,
-    window: int,
-    fade: int,
-    rig: Rig,
-    earliest: int,
-    *,
-    no_shorter: bool = False,
+    out: Motion, source: Motion, first: int, window: int, fade: int, rig: Rig, earliest: int
 ) -> tuple[Motion, int, tuple[int, int]]:
-    """The source's best re-entry window (Eq. 1, at source frames from `first` to a second past the
-    fade's start) aligned with `out`'s `window` frames from the best fade start (from `earliest` to
-    the last `window` frames), faded in from there over `fade` frames (resume_fade_frames; the pelvis'
+    """The source's best re-entry window (Eq. 1, at source frames from `first` to the fade's start)
+    aligned with `out`'s `window` frames from the best fade start (from `earliest` to the last
+    `window` frames), faded in from there over `fade` frames (resume_fade_frames; the pelvis'
     travel over `window` frames: blend_travel) and played on. The fade
     start weighs in: each second the reaction goes on past `earliest` costs RESUME_WAIT (a pushed
     walker whose step has landed walks on rather than standing through the clip's recovery, while
     a stand resumes where the clip has come to rest, which matches it far better). Starts and
     entries are tried every `stride` frames (about RESUME_RATE a second: a 120 fps take would
     otherwise try 16 times as many pairs), starts only within RESUME_SEARCH of `earliest` (waiting
-    longer costs more than the re-entries' Eq. 1 costs differ). no_shorter: only re-entries at or
-    before the fade's start on the source's clock, so the result runs at least to the source's
-    end. Returns the motion, the source frame re-entered at and the fade's frames [start, end)."""
+    longer costs more than the re-entries' Eq. 1 costs differ). No re-entry is later than the
+    fade's start: the result is the output up to the start and the source from the entry on, so a
+    re-entry ahead runs the source out that much before the action ends, and its last pose was held
+    there (a runner froze mid-stride, a toe stopped dead at 257 m/s^2). Returns the motion, the
+    source frame re-entered at and the fade's frames [start, end)."""
     stride = max(1, round(out.fps / RESUME_RATE))
+    span = max(2, round(window / stride))
     latest = min(out.num_frames - window, earliest + round(RESUME_SEARCH * out.fps))
-    stop = min(source.num_frames, latest + round(source.fps))  # re-entries a second past the latest start
+    stop = min(source.num_frames, latest + (span + 1) * stride)  # a window from the latest re-entry
     tails = frame_features(out.slice(earliest, latest + window), rig).rows(slice(None, None, stride))
     candidates = frame_features(source.slice(first, stop), rig).rows(slice(None, None, stride))
-    span = max(2, round(window / stride))
     wp, wq = joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS)
     windows = Windows.of(candidates, np.arange(max(0, candidates.num_frames - span + 1)), span)
     tried: list[tuple[float, int, int]] = [(np.inf, out.num_frames - window, first)]
@@ -805,10 +790,7 @@ def _resume(
         if wait >= min(tried)[0]:
             break  # Eq. 1 costs are never negative: no later start can win
         query = Query(tails.rows(slice(k, k + span)))
-        # re-entries up to a second past the start that leave the source RESUME_LEFT fades
-        last = min(stop - RESUME_LEFT * fade, start + round(source.fps) - window)
-        if no_shorter:
-            last = min(last, start)
+        last = min(source.num_frames - RESUME_LEFT * fade, start)  # leaving the source RESUME_LEFT fades
         entries = min((last - first) // stride + 1, candidates.num_frames - span + 1)
         if entries <= 0 or query.window < span:
             continue

@@ -287,13 +287,11 @@ def _offsets(down: FloatArray, slide: FloatArray, steps: FloatArray, fps: float,
         size = float(np.linalg.norm(held))
         if size > 0.0:
             air = 1.0 - down[t - 1]
-            let_go = size * np.exp(-air * CATCH_UP_RATE / fps) - air * CATCH_UP_FINISH / fps
-            held *= min(most, max(0.0, let_go)) / size
+            held *= max(0.0, size * np.exp(-air * CATCH_UP_RATE / fps) - air * CATCH_UP_FINISH / fps) / size
         if t >= 2:
             held = _landing(held, offset[t - 2 : t], steps[t - 2 : t], LANDING_ACCEL / fps**2)
-            size = float(np.linalg.norm(held))
-            held *= min(1.0, most / max(size, 1e-12))  # the cap still holds: beyond it, the foot slides
-        offset[t] = held
+        size = float(np.linalg.norm(held))
+        offset[t] = held * min(1.0, most / max(size, 1e-12))  # the cap last: beyond it, the foot slides
     return offset
 
 
