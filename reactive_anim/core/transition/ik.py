@@ -17,6 +17,14 @@ from ..model.skeleton import Skeleton
 # bones, far above float noise
 STRAIGHT = np.radians(1.0)
 
+# A bent knee (elbow) counts as bent backward, its plane rebuilt, only where its plane's axis is
+# within 60 degrees of the wrong way round the body's left-right line (cos 60 = 0.5): a limb
+# swung out to the side bends in a plane whose axis is near right angles to that line, on either
+# side of it from frame to frame. Tested by its sign alone, the elbow of a lying body's arm,
+# stretched out 20 degrees bent while a hand was lifted out of the floor, crossed it back and forth
+# and flicked between its own plane and the rebuilt one (478 m/s^2 in one frame).
+BACKWARD = 0.5
+
 
 def arc(u: FloatArray, v: FloatArray) -> FloatArray:
     """The smallest rotations taking unit vectors u onto v, (..., 4); opposite vectors turn about
@@ -56,11 +64,11 @@ def two_bone_ik(
     thigh, shin = np.linalg.norm(k - h, axis=-1), np.linalg.norm(a - k, axis=-1)
     reach = np.clip(np.linalg.norm(target - h, axis=-1), np.abs(thigh - shin) + 1e-4, thigh + shin - 1e-4)
     want = np.arccos(np.clip((thigh**2 + shin**2 - reach**2) / (2 * thigh * shin), -1.0, 1.0))
-    # A knee bent forward enough turns in its own plane (the source's, kept); a straight or
-    # backward one is rebuilt about the left-right line, shin to the back.
+    # A knee bent forward (or sideways) enough turns in its own plane (the source's, kept); a
+    # straight or backward one is rebuilt about the left-right line, shin to the back.
     plane = np.cross(h - k, a - k)
     now = np.arccos(np.clip(np.sum(unit(h - k) * unit(a - k), axis=-1), -1.0, 1.0))
-    natural = (np.pi - now > STRAIGHT) & (np.sum(plane * left[t], axis=-1) < 0.0)
+    natural = (np.pi - now > STRAIGHT) & (np.sum(unit(plane) * left[t], axis=-1) < BACKWARD)
     along = unit(k - h)
     hinge = left[t] - along * np.sum(left[t] * along, axis=-1, keepdims=True)
     hinge = np.where((np.linalg.norm(hinge, axis=-1) < 1e-6)[:, None], plane, hinge)  # a thigh along the hips
