@@ -83,7 +83,7 @@ from .search.window import (
     joint_weights,
     yaw_rotate,
 )
-from .transition.blend import blend, blend_travel, carry, fade_weights, place
+from .transition.blend import blend, blend_travel, calmest_fade, carry, fade_weights, place
 from .transition.casting import Casting
 from .transition.footing import hold_feet, lift_onto_floor
 from .transition.soften import context_frames, soften
@@ -161,6 +161,8 @@ class ReactionSettings:
       out of the floor (footing.py) [True; False leaves the feet where the fades put them, sliding].
     soften: the simulated stretch (BC, CD) averaged over time where a joint's acceleration spikes
       (soften.py) [True; False plays it as sampled: a struck foot stops between two frames].
+    calm_fade: a fall's C..F faded along whichever of a few fade shapes accelerates the body least
+      (blend.calmest_fade) [True; False: the plain smootherstep, as theta_blend's and the others'].
     """
 
     reaction_window: float = 0.25
@@ -175,6 +177,7 @@ class ReactionSettings:
     kept_assist: RootAssist | None = KEPT_WALK
     hold_feet: bool = True
     soften: bool = True
+    calm_fade: bool = True
 
 
 class ReactionClassifier(Protocol):
@@ -353,7 +356,13 @@ def react(
     if settings.soften:
         sim = soften(sim, hit - lead)
     clock.lap("cd")
-    transition = blend(sim.slice(frame_c - lead, sim.num_frames), clip_ef, fade_weights(steps + 1))
+    # a fall's only: on steps and kept walks a shape chosen on the blend alone did worse once the
+    # feet were held (a kept walk's toe 95 -> 182 m/s^2), and there the body is not thrown
+    fade = fade_weights(steps + 1)
+    if settings.calm_fade and match is not None and is_fall(match.reaction_class) and frame_c > lead:
+        context = (_frames(sim, frame_c - lead - 1, steps + 3), _frames(clip, frame_e - 1, steps + 3))
+        fade = calmest_fade(*context, np.array(sorted(set(ragdoll.rig.joints.values()))), ragdoll.rig.joint("pelvis"))
+    transition = blend(sim.slice(frame_c - lead, sim.num_frames), clip_ef, fade)
     to_c = (before.slice(0, lead), sim.slice(0, frame_c - lead))
     if match is None:  # the motion plays on from F; the reaction ends there
         out = _join(*to_c, transition, clip.slice(frame_e + steps + 1, clip.num_frames))
