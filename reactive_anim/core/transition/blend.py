@@ -38,25 +38,31 @@ from ..model.skeleton import Motion, child_in_world, root_child
 from ..search.window import yaw_rotate
 
 
-def fade_weights(frames: int, lag: float = 1.0) -> FloatArray:
-    """(frames,) weights from 0 (first frame) to 1 (last) with zero slope and curvature at both ends;
-    `lag` > 1 holds the first source longer and fades faster toward the end (the smootherstep of
-    time to the power `lag`), < 1 the other way round."""
+def fade_weights(frames: int, lag: float = 1.0, delay: float = 0.0) -> FloatArray:
+    """(frames,) weights from 0 (first frame) to 1 (last) with zero slope and curvature at both ends.
+    A fade held back: `delay`, the share of the frames still all the first source's before it
+    starts; `lag` > 1, the smootherstep of time to the power `lag`, slower to leave the first
+    source and faster toward the end (< 1 the other way round)."""
     if frames < 2:
         return np.ones(max(frames, 0))
-    return smootherstep(np.linspace(0.0, 1.0, frames) ** lag)
+    t = np.linspace(0.0, 1.0, frames)
+    return smootherstep(np.clip((t - delay) / (1.0 - delay), 0.0, 1.0) ** lag)
 
 
-# The fade shapes calmest_fade tries, the plain smootherstep first (kept on a tie).
-FADE_LAGS = (1.0, 1.5, 2.0, 2.5, 0.75)
+# m/s^2: the pelvis' acceleration in real walks and runs stays under this in 99 frames of 100
+# (docs/measurements.md); a fade shape may move it so much as it ends, or as much as the plain one.
+SEAM_PELVIS = 16.5
+
+# The fade shapes (lag, delay) calmest_fade tries, the plain smootherstep first (kept on a tie).
+FADE_SHAPES = ((1.0, 0.0), (1.5, 0.0), (2.0, 0.0), (2.5, 0.0), (0.75, 0.0), (1.0, 0.2), (1.0, 0.35), (1.0, 0.5))
 
 
 def calmest_fade(a: Motion, b: Motion, joints: IndexArray, pelvis: int) -> FloatArray:
     """Weights for `blend(a, b)` over their frames but the first and last (where the output is
     still `a`'s and already `b`'s: the frames either side of the fade): the plain smootherstep,
     unless it accelerates `joints` faster than either source does on its own; then whichever of the
-    FADE_LAGS shapes accelerates them least at its peak, among those that move the pelvis no harder
-    than the plain one as the fade ends.
+    FADE_SHAPES accelerates them least at its peak, among those that move the pelvis as the fade
+    ends no harder than real motion mostly does (SEAM_PELVIS) or than the plain one.
 
     A slerp toward a still pose from a body turning fast (thrown flat by a hard push, faded into a
     kneeling fall) adds the fade's slope times the body's turn: a toe accelerated at 282 m/s^2
@@ -65,13 +71,13 @@ def calmest_fade(a: Motion, b: Motion, joints: IndexArray, pelvis: int) -> Float
     later fade is steeper toward its end: unchecked, it jolted the pelvis at F in 2 more seams in
     100 (docs/measurements.md)."""
     inner = a.num_frames - 2
-    shapes = [np.concatenate([[0.0], fade_weights(inner, lag), [1.0]]) for lag in FADE_LAGS]
+    shapes = [np.concatenate([[0.0], fade_weights(inner, *shape), [1.0]]) for shape in FADE_SHAPES]
     blends = [blend(a, b, weights) for weights in shapes]
     peaks = [_peak_acceleration(m, joints) for m in blends]
     if peaks[0] <= max(_peak_acceleration(a, joints), _peak_acceleration(b, joints)):
         return shapes[0][1:-1]
     at_end = [_peak_acceleration(m.slice(m.num_frames - 4, m.num_frames), np.array([pelvis])) for m in blends]
-    calm = [k for k in range(len(shapes)) if at_end[k] <= at_end[0]]
+    calm = [k for k in range(len(shapes)) if at_end[k] <= max(at_end[0], SEAM_PELVIS / a.fps**2)]
     return shapes[min(calm, key=lambda k: peaks[k])][1:-1]
 
 
