@@ -83,8 +83,9 @@ from .search.window import (
     joint_weights,
     yaw_rotate,
 )
-from .transition.blend import blend, blend_travel, calmest_fade, carry, fade_weights, place
+from .transition.blend import blend, blend_travel, carry, fade_weights, place
 from .transition.casting import Casting
+from .transition.fade_shape import calmest_fade, fade_context
 from .transition.footing import hold_feet, lift_onto_floor
 from .transition.soften import context_frames, soften
 
@@ -161,8 +162,10 @@ class ReactionSettings:
       out of the floor (footing.py) [True; False leaves the feet where the fades put them, sliding].
     soften: the simulated stretch (BC, CD) averaged over time where a joint's acceleration spikes
       (soften.py) [True; False plays it as sampled: a struck foot stops between two frames].
-    calm_fade: a fall's C..F faded along whichever of a few fade shapes accelerates the body least
-      (blend.calmest_fade) [True; False: the plain smootherstep, as theta_blend's and the others'].
+    calm_fade: a fall's C..F faded along whichever of a few fade shapes accelerates the body least,
+      where the plain one makes it accelerate faster than the simulation and the clip do alone, and
+      jolts the pelvis at F no harder than real motion mostly does (fade_shape.py) [True; False:
+      the plain smootherstep, as theta_blend's and every other reaction's].
     """
 
     reaction_window: float = 0.25
@@ -339,11 +342,11 @@ def react(
     steps = max(1, round(settings.transition * motion.fps))
     if match is not None and is_fall(match.reaction_class) and settings.fall_transition > settings.transition:
         steps = _calm_end(clip, frame_e, steps, round(settings.fall_transition * motion.fps), ragdoll.rig)
-    clip_ef = _frames(clip, frame_e, steps + 1)  # E..F; a clip that ends sooner holds its last pose
+    clip_ef = clip.frames(frame_e, steps + 1)  # E..F; a clip that ends sooner holds its last pose
     # theta_blend: what the character was playing (an earlier reaction, if one plays; a kept walk where
     # the push moved it), starting from the simulated pose at C (blend.carry), faded into the clip.
     playing = motion if match is not None else clip
-    played = carry(_frames(playing, frame_c, steps + 1), before.slice(frame_c, frame_c + 1),
+    played = carry(playing.frames(frame_c, steps + 1), before.slice(frame_c, frame_c + 1),
                    round(CARRY_TIME * motion.fps))  # fmt: skip
     target = blend(played, clip_ef, fade_weights(steps + 1))
     assist = settings.assist if match is not None else settings.kept_assist
@@ -359,9 +362,13 @@ def react(
     # a fall's only: on steps and kept walks a shape chosen on the blend alone did worse once the
     # feet were held (a kept walk's toe 95 -> 182 m/s^2), and there the body is not thrown
     fade = fade_weights(steps + 1)
-    if settings.calm_fade and match is not None and is_fall(match.reaction_class) and frame_c > lead:
-        context = (_frames(sim, frame_c - lead - 1, steps + 3), _frames(clip, frame_e - 1, steps + 3))
-        fade = calmest_fade(*context, np.array(sorted(set(ragdoll.rig.joints.values()))), ragdoll.rig.joint("pelvis"))
+    before_c, after_f = fade_context(motion.fps)  # the frames the shapes are judged on must exist
+    thrown = settings.calm_fade and match is not None and is_fall(match.reaction_class)
+    if thrown and min(frame_c - lead, frame_e) >= before_c:
+        sim_cf = sim.slice(frame_c - lead - before_c, sim.num_frames)
+        clip_cf = clip.frames(frame_e - before_c, before_c + steps + 1 + after_f)
+        joints = np.array(sorted(set(ragdoll.rig.joints.values())))
+        fade = calmest_fade(sim_cf, clip_cf, joints, ragdoll.rig.joint("pelvis"))
     transition = blend(sim.slice(frame_c - lead, sim.num_frames), clip_ef, fade)
     to_c = (before.slice(0, lead), sim.slice(0, frame_c - lead))
     if match is None:  # the motion plays on from F; the reaction ends there
@@ -807,12 +814,12 @@ def _resume(
         j = int(np.argmin(costs))
         tried.append((float(costs[j]) + wait, start, first + j * stride))
     _, begin, entry = min(tried)  # on an exact tie, the earliest start and re-entry
-    tail = _frames(out, begin, fade)
+    tail = out.frames(begin, fade)
     yaw, offset = _alignment(tail.slice(0, 1), source.slice(entry, entry + 1), rig)
     resumed = place(source.slice(entry, source.num_frames), yaw, offset)
     pelvis = rig.joint("pelvis")
     pace = np.concatenate([fade_weights(window), np.ones(fade - window)])
-    faded, carried = blend_travel(tail, _frames(resumed, 0, fade), fade_weights(fade), pelvis, pace)
+    faded, carried = blend_travel(tail, resumed.frames(0, fade), fade_weights(fade), pelvis, pace)
     rest = place(resumed.slice(min(fade, resumed.num_frames), resumed.num_frames), 0.0, carried)
     return _join(out.slice(0, begin), faded, rest), entry, (begin, begin + fade)
 
@@ -849,13 +856,6 @@ def _alignment(anchor: Motion, moving: Motion, rig: Rig) -> tuple[float, tuple[f
     yaw = float(a.heading[0] - m.heading[0])
     offset = a.ground[0] - yaw_rotate(yaw, np.append(m.ground[0], 0.0))[:2]
     return yaw, (float(offset[0]), float(offset[1]))
-
-
-def _frames(motion: Motion, first: int, count: int) -> Motion:
-    """`count` frames from `first`, the last frame repeated past the motion's end."""
-    index = np.minimum(np.arange(first, first + count), motion.num_frames - 1)
-    local_pos = None if motion.local_pos is None else motion.local_pos[index]
-    return Motion(motion.skeleton, motion.fps, motion.root_pos[index], motion.local_rot[index], local_pos)
 
 
 def _join(*parts: Motion) -> Motion:

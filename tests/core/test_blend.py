@@ -8,7 +8,7 @@ import pytest
 from reactive_anim.core.model import bvh, quat
 from reactive_anim.core.model.errors import SkeletonError
 from reactive_anim.core.model.skeleton import Motion, Skeleton
-from reactive_anim.core.transition.blend import blend, blend_travel, calmest_fade, carry, fade_weights, place
+from reactive_anim.core.transition.blend import blend, blend_travel, carry, fade_weights, place
 from tests.support.mocap import REPO
 
 
@@ -24,6 +24,22 @@ def test_fade_weights_run_from_zero_to_one_with_flat_ends() -> None:
     slope = np.diff(w) * 20
     assert slope[0] < 0.05 and slope[-1] < 0.05  # a linear fade has slope 1 at both ends, this one 1.9 mid-way
     assert w[10] == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize(("lag", "delay"), [(1.5, 0.0), (2.5, 0.0), (0.75, 0.0), (1.0, 0.35)])
+def test_a_fade_shaped_otherwise_still_runs_from_zero_to_one_with_flat_ends(lag: float, delay: float) -> None:
+    w = fade_weights(301, lag, delay)
+    assert w[0] == 0.0 and w[-1] == 1.0 and np.all(np.diff(w) >= 0.0)
+    slope = np.diff(w) * 300
+    assert slope[0] < 0.01 and slope[-1] < 0.01
+    assert np.all(w[: int(delay * 300)] == 0.0)  # held back: the first source's alone
+    assert (w[150] < 0.5) == (lag > 1.0 or delay > 0.0)
+
+
+@pytest.mark.parametrize(("lag", "delay"), [(0.0, 0.0), (-1.0, 0.0), (1.0, 1.0), (1.0, -0.1)])
+def test_a_fade_shape_out_of_range_is_refused(lag: float, delay: float) -> None:
+    with pytest.raises(ValueError, match="delay"):
+        fade_weights(10, lag, delay)
 
 
 def test_blend_equals_each_motion_at_its_end_and_lies_between(walk) -> None:
@@ -160,42 +176,3 @@ def test_a_joint_passing_half_a_turn_from_the_other_source_keeps_its_arc(walk) -
     assert steps.max() < 15.0, steps.max()
     shortest = quat.slerp(a.local_rot[:, 1], b.local_rot[:, 1], fade_weights(30))
     assert np.degrees(quat.angle_between(shortest[1:], shortest[:-1])).max() > 90.0  # what it did before
-
-
-def _tumbling(walk: Motion, frames: int, turns_per_second: float) -> Motion:
-    """The walk's first pose held, the whole body turning head over heels about the x axis, fast
-    for the first half and slowing to a stop (a body thrown flat, landing)."""
-    t = np.arange(frames) / walk.fps
-    speed = 2 * np.pi * turns_per_second * np.clip(1.0 - t / t[-1] * 2.0, 0.0, 1.0)
-    angle = np.concatenate([[0.0], np.cumsum(speed[1:] / walk.fps)])
-    spin = quat.from_axis_angle(np.array([1.0, 0.0, 0.0]), angle)
-    local = np.repeat(walk.local_rot[:1], frames, axis=0)
-    local[:, 0] = quat.mul(spin, local[:, 0])
-    root = np.repeat(walk.root_pos[:1], frames, axis=0)
-    return Motion(walk.skeleton, walk.fps, root, local)
-
-
-def _peak(motion: Motion) -> float:
-    p = motion.global_positions()
-    return float(np.linalg.norm(p[2:] - 2 * p[1:-1] + p[:-2], axis=-1).max())
-
-
-def test_the_calmest_fade_holds_a_tumbling_body_until_it_slows(walk) -> None:
-    """A body turning fast faded into a still pose: the plain smootherstep adds its slope times the
-    turn; calmest_fade picks a shape whose peak acceleration is lower, and one of its shapes, flat
-    at both ends."""
-    a = _tumbling(walk, 22, 1.5)
-    b = Motion(walk.skeleton, walk.fps, np.repeat(walk.root_pos[:1], 22, 0), np.repeat(walk.local_rot[:1], 22, 0))
-    joints = np.arange(walk.skeleton.num_joints)
-    chosen = calmest_fade(a, b, joints, 0)
-    plain = np.concatenate([[0.0], fade_weights(20), [1.0]])
-    picked = np.concatenate([[0.0], chosen, [1.0]])
-    assert not np.allclose(chosen, plain[1:-1])
-    assert _peak(blend(a, b, picked)) < _peak(blend(a, b, plain))
-    assert chosen[0] == 0.0 and chosen[-1] == 1.0 and np.all(np.diff(chosen) >= 0.0)
-
-
-def test_the_calmest_fade_is_the_plain_one_where_that_adds_nothing(walk) -> None:
-    a, b = walk.slice(0, 22), walk.slice(0, 22)
-    chosen = calmest_fade(a, b, np.arange(walk.skeleton.num_joints), 0)
-    assert np.array_equal(chosen, fade_weights(20))

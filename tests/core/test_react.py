@@ -467,8 +467,8 @@ def test_a_body_thrown_flat_fades_into_its_fall_no_faster_than_real_falls(librar
     """300 N·s on the chest from the side throws the body flat, and C..F fades it into the kneeling
     side fall: from C to just past F no joint accelerates faster than in the real falls. With the
     plain smootherstep the slerp from the tumbling body turned a toe at 276 and 258 m/s^2 (the
-    simulation alone 109 and 129); the fade now takes the calmest of a few shapes
-    (blend.calmest_fade)."""
+    simulation alone 109 and 129); the fade now takes the calmest of a few shapes that does not
+    jolt the pelvis at F (fade_shape.calmest_fade)."""
     motion = bvh.read_bvh(require_mocap(take))
     ragdoll = character_ragdoll(motion)
     _, left = ground_axes(motion, frame, ragdoll.roles)

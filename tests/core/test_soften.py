@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from reactive_anim.core.model import bvh
+from reactive_anim.core.model.acceleration import STRIDE
 from reactive_anim.core.model.skeleton import Motion
-from reactive_anim.core.transition.soften import SIGMA, SPIKE_FULL, STRIDE, soften
+from reactive_anim.core.transition.soften import SIGMA, SPIKE_FULL, soften
 from tests.support.mocap import REPO
 from tools.devkit import believability as bl
 

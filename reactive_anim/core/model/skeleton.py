@@ -158,6 +158,12 @@ class Motion:
             local_pos=local_pos,
         )
 
+    def frames(self, first: int, count: int) -> Motion:
+        """`count` frames from `first`, the last frame held past the motion's end."""
+        index = np.minimum(np.arange(first, first + count), self.num_frames - 1)
+        local_pos = None if self.local_pos is None else self.local_pos[index]
+        return replace(self, root_pos=self.root_pos[index], local_rot=self.local_rot[index], local_pos=local_pos)
+
     def concat(self, other: Motion) -> Motion:
         """This motion followed by `other` (same skeleton and frame rate)."""
         if other.skeleton.names != self.skeleton.names or not np.isclose(other.fps, self.fps):

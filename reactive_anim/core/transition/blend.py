@@ -10,7 +10,7 @@ What we choose where the paper is silent, and why:
   6s^5 - 15s^4 + 10s^3: its first and second derivatives are zero at both ends, so at C the output
   leaves CD with CD's own velocity and at F it joins the clip with the clip's velocity (a linear
   fade would add a velocity step of (clip - CD) / duration at both ends). A fall's C..F may take
-  it on a warped clock instead (calmest_fade): a body thrown flat and still tumbling, slerped
+  it on a warped clock instead (fade_shape.py): a body thrown flat and still tumbling, slerped
   toward a still clip along the plain curve, turns its limbs faster than either source.
 - Joint offsets (animated bone lengths, as in the Bandai Namco files) are lerped like the root.
 - Each joint's arc stays the same from frame to frame: the shorter one where the weight is
@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..model import quat
-from ..model.arrays import FloatArray, IndexArray
+from ..model.arrays import FloatArray
 from ..model.ease import smootherstep
 from ..model.errors import SkeletonError
 from ..model.skeleton import Motion, child_in_world, root_child
@@ -40,51 +40,15 @@ from ..search.window import yaw_rotate
 
 def fade_weights(frames: int, lag: float = 1.0, delay: float = 0.0) -> FloatArray:
     """(frames,) weights from 0 (first frame) to 1 (last) with zero slope and curvature at both ends.
-    A fade held back: `delay`, the share of the frames still all the first source's before it
-    starts; `lag` > 1, the smootherstep of time to the power `lag`, slower to leave the first
-    source and faster toward the end (< 1 the other way round)."""
+    A fade held back: `delay` (0 <= delay < 1), the share of the frames still all the first source's
+    before it starts; `lag` (> 0) over 1, the smootherstep of time to the power `lag`, slower to
+    leave the first source and faster toward the end (under 1 the other way round)."""
+    if not (0.0 <= delay < 1.0 and lag > 0.0):
+        raise ValueError(f"a fade needs 0 <= delay < 1 and lag > 0, not delay {delay}, lag {lag}")
     if frames < 2:
         return np.ones(max(frames, 0))
     t = np.linspace(0.0, 1.0, frames)
     return smootherstep(np.clip((t - delay) / (1.0 - delay), 0.0, 1.0) ** lag)
-
-
-# m/s^2: the pelvis' acceleration in real walks and runs stays under this in 99 frames of 100
-# (docs/measurements.md); a fade shape may move it so much as it ends, or as much as the plain one.
-SEAM_PELVIS = 16.5
-
-# The fade shapes (lag, delay) calmest_fade tries, the plain smootherstep first (kept on a tie).
-FADE_SHAPES = ((1.0, 0.0), (1.5, 0.0), (2.0, 0.0), (2.5, 0.0), (0.75, 0.0), (1.0, 0.2), (1.0, 0.35), (1.0, 0.5))
-
-
-def calmest_fade(a: Motion, b: Motion, joints: IndexArray, pelvis: int) -> FloatArray:
-    """Weights for `blend(a, b)` over their frames but the first and last (where the output is
-    still `a`'s and already `b`'s: the frames either side of the fade): the plain smootherstep,
-    unless it accelerates `joints` faster than either source does on its own; then whichever of the
-    FADE_SHAPES accelerates them least at its peak, among those that move the pelvis as the fade
-    ends no harder than real motion mostly does (SEAM_PELVIS) or than the plain one.
-
-    A slerp toward a still pose from a body turning fast (thrown flat by a hard push, faded into a
-    kneeling fall) adds the fade's slope times the body's turn: a toe accelerated at 282 m/s^2
-    where the simulation alone reached 109 and the clip 56. Which shape is calmest depends on when
-    the body turns: held longer while it is still tumbling, or faded sooner while it is slow. A
-    later fade is steeper toward its end: unchecked, it jolted the pelvis at F in 2 more seams in
-    100 (docs/measurements.md)."""
-    inner = a.num_frames - 2
-    shapes = [np.concatenate([[0.0], fade_weights(inner, *shape), [1.0]]) for shape in FADE_SHAPES]
-    blends = [blend(a, b, weights) for weights in shapes]
-    peaks = [_peak_acceleration(m, joints) for m in blends]
-    if peaks[0] <= max(_peak_acceleration(a, joints), _peak_acceleration(b, joints)):
-        return shapes[0][1:-1]
-    at_end = [_peak_acceleration(m.slice(m.num_frames - 4, m.num_frames), np.array([pelvis])) for m in blends]
-    calm = [k for k in range(len(shapes)) if at_end[k] <= max(at_end[0], SEAM_PELVIS / a.fps**2)]
-    return shapes[min(calm, key=lambda k: peaks[k])][1:-1]
-
-
-def _peak_acceleration(motion: Motion, joints: IndexArray) -> float:
-    """The largest second difference of `joints`' positions (m per frame^2)."""
-    points = motion.global_positions()[:, joints]
-    return float(np.linalg.norm(points[2:] - 2.0 * points[1:-1] + points[:-2], axis=-1).max(initial=0.0))
 
 
 def carry(motion: Motion, pose: Motion, frames: int) -> Motion:

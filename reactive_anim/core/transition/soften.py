@@ -6,7 +6,7 @@ idle pushed at 40 N·s, 30% of reactions had a joint (a toe, nearly always) acce
 largest in the same rig's real walks, and a toe struck in most of them (docs/measurements.md).
 Real capture never stops so sharply: soft tissue and shoes round the stop, and so does the
 capture's own filtering. So where the sampled simulation's largest joint acceleration (over
-STRIDE, the stride the quality benchmark measures it over) passes SPIKE_FROM, the frames whose
+model/acceleration.STRIDE, as the quality benchmark measures it) passes SPIKE_FROM, the frames whose
 stencil spans it, and SIGMA's reach around them, are averaged over time with a Gaussian of SIGMA
 seconds, fully from SPIKE_FULL; elsewhere the simulation plays as it was sampled.
 
@@ -29,11 +29,11 @@ import math
 import numpy as np
 
 from ..model import quat
+from ..model.acceleration import accelerations, stride_frames
 from ..model.arrays import FloatArray
 from ..model.skeleton import Motion
 
 SIGMA = 1.0 / 30.0  # s: the Gaussian's standard deviation, a frame at 30 fps
-STRIDE = 1.0 / 30.0  # s: accelerations are second differences over this stride (as measured on capture)
 # m/s^2: the largest joint acceleration from which a frame is softened, and fully from; the real
 # walks of every shared rig reach 28 on one frame in ten, 53 in a hundred and 79 in a thousand
 SPIKE_FROM = 40.0
@@ -59,11 +59,7 @@ def soften(motion: Motion, first: int, spike: tuple[float, float] = (SPIKE_FROM,
 
 def context_frames(fps: float) -> int:
     """How many frames before `first` soften reads: a caller need pass no more of what came before."""
-    return _stride(fps) + _reach(fps)
-
-
-def _stride(fps: float) -> int:
-    return max(1, round(STRIDE * fps))
+    return stride_frames(fps) + _reach(fps)
 
 
 def _reach(fps: float) -> int:
@@ -75,10 +71,10 @@ def _pass(motion: Motion, first: int, spike: tuple[float, float]) -> Motion:
     n = motion.num_frames
     if first >= n:
         return motion
-    stride, reach = _stride(motion.fps), _reach(motion.fps)
+    stride, reach = stride_frames(motion.fps), _reach(motion.fps)
     lo = max(first - stride, 0)
     spikes = np.zeros(n)
-    spikes[lo:] = _spikes(motion.slice(lo, n).global_positions(), stride, motion.fps, spike)
+    spikes[lo:] = _spikes(motion.slice(lo, n).global_positions(), motion.fps, spike)
     amount = _widened(spikes, stride + reach)
     rows = first + np.flatnonzero(amount[first:] > 0)  # the frames softened: no other is written
     if not len(rows):
@@ -108,16 +104,11 @@ def _mean(values: FloatArray, weights: FloatArray) -> FloatArray:
     return np.moveaxis(values, 1, -1) @ weights
 
 
-def _spikes(positions: FloatArray, stride: int, fps: float, spike: tuple[float, float]) -> FloatArray:
-    """(T,) how much each frame's largest joint acceleration (positions (T, J, 3), second
-    differences over `stride` frames) calls for softening: 0 up to spike[0], 1 from spike[1];
-    0 where the stride leaves the frames."""
-    out = np.zeros(len(positions))
-    if len(positions) > 2 * stride:
-        second = positions[2 * stride :] - 2.0 * positions[stride:-stride] + positions[: -2 * stride]
-        largest = np.linalg.norm(second, axis=-1).max(axis=1) * (fps / stride) ** 2
-        out[stride:-stride] = np.clip((largest - spike[0]) / (spike[1] - spike[0]), 0.0, 1.0)
-    return out
+def _spikes(positions: FloatArray, fps: float, spike: tuple[float, float]) -> FloatArray:
+    """(T,) how much each frame's largest joint acceleration (positions (T, J, 3)) calls for
+    softening: 0 up to spike[0], 1 from spike[1]; 0 where the stride leaves the frames."""
+    largest = np.max(accelerations(positions, fps), axis=1)
+    return np.nan_to_num(np.clip((largest - spike[0]) / (spike[1] - spike[0]), 0.0, 1.0))
 
 
 def _widened(values: FloatArray, half: int) -> FloatArray:
