@@ -8,6 +8,8 @@ bent to the side keeps its plane whichever side of square it is; one bent backwa
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 import numpy as np
 
 from reactive_anim.core.model import bvh
@@ -76,3 +78,12 @@ def test_a_knee_bent_backward_is_rebuilt_bending_forward():
     before, after = _lifted(10.0, 170.0)
     assert _turn(after, before) > 150.0
     assert after[0] > 0.0  # the knee now ahead of the hip-ankle line: bent forward, shin back
+
+
+def test_a_knee_s_plane_turns_gradually_as_its_bend_turns_backward() -> None:
+    """Bent 20 degrees at headings from the side round to straight back, 2 degrees apart: where it
+    stops counting as bent its own way, the lifted knee's plane turns over a band of headings, never
+    more than 15 degrees between neighbours (a single threshold flicked it 120 degrees)."""
+    offsets = [_lifted(20.0, heading)[1] for heading in np.arange(90.0, 182.0, 2.0)]
+    turns = [_turn(a, b) for a, b in pairwise(offsets)]
+    assert max(turns) < 15.0, np.round(turns, 1)

@@ -17,13 +17,15 @@ from ..model.skeleton import Skeleton
 # bones, far above float noise
 STRAIGHT = np.radians(1.0)
 
-# A bent knee (elbow) counts as bent backward, its plane rebuilt, only where its plane's axis is
-# within 60 degrees of the wrong way round the body's left-right line (cos 60 = 0.5): a limb
-# swung out to the side bends in a plane whose axis is near right angles to that line, on either
-# side of it from frame to frame. Tested by its sign alone, the elbow of a lying body's arm,
-# stretched out 20 degrees bent while a hand was lifted out of the floor, crossed it back and forth
-# and flicked between its own plane and the rebuilt one (478 m/s^2 in one frame).
-BACKWARD = 0.5
+# A bent knee (elbow) bends on in its own plane unless that plane's axis turns the wrong way round
+# the body's left-right line (its cosine to the line from BACKWARD[0] on), and in the rebuilt plane
+# from BACKWARD[1] (73 and 37 degrees from the wrong way); between the two it is turned about the
+# thigh from the one toward the other in proportion. A limb swung out to the side bends about an
+# axis near right angles to that line, on either side of it from frame to frame. Tested by its
+# sign alone, the elbow of a lying body's arm, stretched out 20 degrees bent while a hand was
+# lifted out of the floor, crossed it back and forth and flicked between its own plane and the
+# rebuilt one (478 m/s^2 in one frame); any single threshold moves that flick, not removes it.
+BACKWARD = (0.3, 0.8)
 
 
 def arc(u: FloatArray, v: FloatArray) -> FloatArray:
@@ -52,9 +54,10 @@ def two_bone_ik(
     forward: FloatArray,
 ) -> None:
     """Turn hip and knee (global rotations, in place) so the ankle reaches toward `goal` by `weight`.
-    A knee bent forward keeps its plane; a straight one (whose plane is float noise, and may point
-    backwards) bends about the body's left-right line (`left`, per frame), its shin toward the back
-    (`forward` is the body's front). The foot keeps its world orientation."""
+    A knee bent forward or sideways keeps its plane; a straight one (whose plane is float noise) or
+    one bent backward bends about the body's left-right line (`left`, per frame), its shin toward
+    the back (`forward` is the body's front), and one between the two turns gradually from the one
+    plane to the other (BACKWARD). The foot keeps its world orientation."""
     hip, knee, ankle = joints
     t = np.flatnonzero(weight > 0)
     if not len(t):
@@ -65,18 +68,24 @@ def two_bone_ik(
     reach = np.clip(np.linalg.norm(target - h, axis=-1), np.abs(thigh - shin) + 1e-4, thigh + shin - 1e-4)
     want = np.arccos(np.clip((thigh**2 + shin**2 - reach**2) / (2 * thigh * shin), -1.0, 1.0))
     # A knee bent forward (or sideways) enough turns in its own plane (the source's, kept); a
-    # straight or backward one is rebuilt about the left-right line, shin to the back.
+    # straight or backward one is rebuilt about the left-right line, shin to the back; one between
+    # is turned about the thigh from the kept toward the rebuilt (BACKWARD).
     plane = np.cross(h - k, a - k)
     now = np.arccos(np.clip(np.sum(unit(h - k) * unit(a - k), axis=-1), -1.0, 1.0))
-    natural = (np.pi - now > STRAIGHT) & (np.sum(unit(plane) * left[t], axis=-1) < BACKWARD)
+    tilt = np.sum(unit(plane) * left[t], axis=-1)
+    rebuilt_share = np.clip((tilt - BACKWARD[0]) / (BACKWARD[1] - BACKWARD[0]), 0.0, 1.0)
+    rebuilt_share[np.pi - now <= STRAIGHT] = 1.0
     along = unit(k - h)
     hinge = left[t] - along * np.sum(left[t] * along, axis=-1, keepdims=True)
     hinge = np.where((np.linalg.norm(hinge, axis=-1) < 1e-6)[:, None], plane, hinge)  # a thigh along the hips
     bend = np.pi - want  # 0: straight
     rebuilt = [quat.rotate(quat.from_axis_angle(unit(hinge), sign * bend), along) for sign in (1.0, -1.0)]
     backward = np.sum(rebuilt[0] * forward[t], axis=-1) <= np.sum(rebuilt[1] * forward[t], axis=-1)
+    rebuilt_dir = np.where(backward[:, None], rebuilt[0], rebuilt[1])
     kept = quat.rotate(quat.from_axis_angle(unit(plane), want - now), unit(a - k))  # opens the angle to want
-    shin_dir = np.where(natural[:, None], kept, np.where(backward[:, None], rebuilt[0], rebuilt[1]))
+    shin_dir = np.where(
+        (rebuilt_share < 1.0)[:, None], _turned_toward(kept, rebuilt_dir, along, rebuilt_share), rebuilt_dir
+    )
     turn_knee = arc(unit(a - k), shin_dir)
     new_a = k + shin_dir * shin[:, None]
     swing = arc(unit(new_a - h), unit(target - h))
@@ -89,6 +98,15 @@ def two_bone_ik(
     glob[t, ankle] = foot
     pos[t, knee] = h + quat.rotate(swing, k - h)
     pos[t, ankle] = h + quat.rotate(swing, new_a - h)
+
+
+def _turned_toward(u: FloatArray, v: FloatArray, axis: FloatArray, share: FloatArray) -> FloatArray:
+    """`u` turned about `axis` by `share` of the angle about it that takes it to `v` (both on one
+    cone about the axis, so at 1 it is `v`)."""
+    u_across = u - axis * np.sum(u * axis, axis=-1, keepdims=True)
+    v_across = v - axis * np.sum(v * axis, axis=-1, keepdims=True)
+    angle = np.arctan2(np.sum(axis * np.cross(u_across, v_across), axis=-1), np.sum(u_across * v_across, axis=-1))
+    return quat.rotate(quat.from_axis_angle(axis, share * angle), u)
 
 
 def joint_path(skeleton: Skeleton, top: int, bottom: int) -> list[int]:
