@@ -62,6 +62,7 @@ import numpy as np
 from .classify.capture import foot_bodies
 from .classify.features import FeatureReader, feature_rig
 from .classify.outcome import COLLAPSE_HEIGHT, STEP_CLASSES, Outcome, collapsing, judge, way
+from .model.acceleration import accelerations, stride_frames
 from .model.arrays import FloatArray
 from .model.classes import CLASS_SLUGS, CLASSES, is_fall, reaction_class
 from .model.errors import Cancelled, ImpactError, LibraryError, SkeletonError
@@ -833,12 +834,13 @@ def _calm_end(clip: Motion, frame_e: int, shortest: int, longest: int, rig: Rig)
     clip's pelvis accelerates least over F and the frames either side of it (on a tie, the
     shortest): a fade into a fall that ends as the body lands on the floor hands the seam the
     landing's jolt (ReactionSettings.fall_transition). Frames past the clip's end are not tried."""
-    longest = min(longest, clip.num_frames - 3 - frame_e)
-    first = frame_e + shortest - 2  # the frame before F - 1 at the shortest
+    stride = stride_frames(clip.fps)
+    longest = min(longest, clip.num_frames - 2 - stride - frame_e)
+    first = frame_e + shortest - 1 - stride  # a stride before F - 1 at the shortest
     if longest <= shortest or first < 0:
         return shortest
-    pelvis = clip.slice(first, frame_e + longest + 3).global_positions()[:, rig.joint("pelvis")]
-    jolt = np.linalg.norm(pelvis[2:] - 2.0 * pelvis[1:-1] + pelvis[:-2], axis=-1)  # F - 1 (shortest) .. F + 1 (longest)
+    pelvis = clip.slice(first, frame_e + longest + 2 + stride).global_positions()[:, [rig.joint("pelvis")]]
+    jolt = accelerations(pelvis, clip.fps)[stride:-stride, 0]  # F - 1 (shortest) .. F + 1 (longest)
     around = np.lib.stride_tricks.sliding_window_view(jolt, 3).max(axis=1)  # per F, shortest .. longest
     return shortest + int(np.argmin(around))
 
