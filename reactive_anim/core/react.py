@@ -76,6 +76,7 @@ from .physics.workspace import BC_GAINS, Workspace
 from .search.library import Library
 from .search.search import Match, search, search_with_fallback
 from .search.window import (
+    SEARCH_ROLES,
     TABLE2_POSITION_WEIGHTS,
     TABLE2_ROTATION_WEIGHTS,
     Query,
@@ -101,6 +102,9 @@ RESUME_FADE = 0.4
 RESUME_LEFT = 2
 DOWN_AHEAD = 0.5  # s after C within which the motion being played reaching the floor counts (_going_down)
 DOWN_HEIGHT = 0.5  # leg lengths: a pelvis this low over the floor sits, kneels or lies (_going_down)
+# m on the library's skeleton: a fall window whose hips end this much higher than the body's at C
+# stands where the body lies (_stands_over)
+STANDS_OVER = 0.3
 STILL_KEPT = 0.5  # s of a clip's still tail played before the motion resumes or a get-up begins
 CARRY_TIME = 0.15  # s over which theta_blend lets go of the body's departure at C (blend.carry; measured 0.15-0.25)
 # s over which CD's servos stiffen from BC's gains (simulate.track's ramp): switched on at once they
@@ -319,12 +323,13 @@ def react(
     clock.lap("bc")
     probabilities = _probabilities(classifier, motion, bc, ragdoll)
     falling = None if impact.reaction is not None else _going_down(motion, bc, ragdoll, impact, library)
+    lying = falling is not None and _played_down(motion, frame_c, feature_rig(ragdoll.rig), bc.floor)
     clock.lap("classify")
     query = _query_ending_at(before, frame_c, casting, impact)
     walking = _walking(bc, impact, ragdoll.total_mass)
     choice = _search(library, query, impact, probabilities, settings, falling,
                      lambda: _judge(motion, bc, ragdoll, impact), walking,
-                     _off_push(motion, impact, ragdoll.rig))  # fmt: skip
+                     _off_push(motion, impact, ragdoll.rig), lying)  # fmt: skip
     match = choice.match
     clock.lap("search")
     if match is None:  # the motion kept: the "clip" is the motion, jumped into at C; a walk moved by the push
@@ -555,6 +560,7 @@ def _search(
     rule: Callable[[], Outcome] | None = None,
     walking: bool = False,
     off: frozenset[str] = frozenset(),
+    lying: bool = False,
 ) -> _Choice:
     """The override's class alone; a body going down, the rule's fall and then the other falls; else
     the classifier's classes (without one, the whole library); either way those `off` the push's way
@@ -562,7 +568,8 @@ def _search(
     order: a sway or a single step while `walking` (_walking), the walk kept; else the probable
     classes (search_with_fallback). When the library lacks the predicted class (or, with no
     classifier, has only falls), `rule` (the outcome rule's verdict, asked only then) decides: see
-    _missing_class."""
+    _missing_class. A body already down while the motion it plays lies on the floor (`lying`: an
+    earlier fall still playing) keeps that motion when the nearest fall window stands (_stands_over)."""
     if impact.reaction is not None:
         return _Choice(search(library, query, [impact.reaction], settings.search_threshold))
     ranked = range(len(CLASS_SLUGS)) if probabilities is None else np.argsort(-probabilities, kind="stable")
@@ -570,6 +577,9 @@ def _search(
     if falling is not None:
         falls = _with_push([falling] + [slug for slug in order if is_fall(slug) and slug != falling], off)
         match = search_with_fallback(library, query, falls, settings.search_threshold)
+        if lying and not match.accepted and _stands_over(library, query, match):
+            return _Choice(None, f"no fall clip lies down where the body is ({match.clip} would stand it up): "
+                                 "kept the motion it plays, the hit simulated", falling)  # fmt: skip
         turned = f"the outcome rule's {falling} {OFF_PUSH}; played {match.reaction_class}"
         return _Choice(match, turned if falls[0] != falling else "")
     chance = {} if probabilities is None else dict(zip(CLASS_SLUGS, map(float, probabilities), strict=True))
@@ -597,6 +607,18 @@ def _search(
     if turned:
         note = turned + (note or f"played {match.reaction_class}")
     return _Choice(match, note)
+
+
+def _stands_over(library: Library, query: Query, match: Match) -> bool:
+    """Whether the match's window ends with the hips more than STANDS_OVER higher than the query's
+    last frame (C). A sitting body pushed again was matched to a fall's standing first window (Eq. 1
+    cost 85, over the threshold, but the nearest fall): the hips rose from 8 to 51 cm through the
+    fade, and the body fell again."""
+    start = np.flatnonzero((library.clip_index == match.clip_index) & (library.frame_index == match.jump_frame))
+    end = int(start[0]) + library.window - 1
+    hips = [SEARCH_ROLES.index("hip_l"), SEARCH_ROLES.index("hip_r")]
+    rise = library.frames.pos_local[end, hips, 2].mean() - query.features.pos_local[-1, hips, 2].mean()
+    return bool(rise > STANDS_OVER)
 
 
 def _with_push(classes: list[str], off: frozenset[str]) -> list[str]:

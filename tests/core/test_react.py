@@ -636,7 +636,8 @@ def test_a_push_on_a_character_sitting_on_the_floor_starts_from_its_pose(library
     """A Bandai Namco walk pushed into a backward fall and its sitting get-up, then pushed on the
     chest while sitting: the sitting hips are flexed 154 degrees, beyond the ragdoll's 120. Clamped
     to the limit at the start, the legs swung 30 cm into the floor and the contacts threw the body a
-    metre up; the run now starts in the mocap's pose and the hips stay near the floor.
+    metre up; the run now starts in the mocap's pose and the hips stay near the floor, to F and on:
+    no fall clip lies down where the body sits, so the sitting is kept (react._stands_over).
     The second push lands as the first fall goes down: the ragdoll, low, bounces off the floor in BC
     and is rising at C; the classifier says a step, which stood the falling body up. The body is low
     and the motion it plays lies within half a second, so it falls on (react._played_down). (The
@@ -655,8 +656,13 @@ def test_a_push_on_a_character_sitting_on_the_floor_starts_from_its_pose(library
     pushed = react(sitting, Impact(123.0, "Chest", (-0.712, 0.596, -0.371), 39.1), library, load_classifier(),
                    source=motion)  # fmt: skip
     assert pushed.motion is not None
-    rise = pushed.motion.global_positions()[123:134, hips, 2] - sitting.global_positions()[123, hips, 2]
+    rise = (
+        pushed.motion.global_positions()[123 : pushed.frame_f + 2, hips, 2] - sitting.global_positions()[123, hips, 2]
+    )
     assert rise.max() < 0.15, rise.max()
+    # no fall clip lies where the sitting body is: the nearest window (a backward fall's first, standing)
+    # lifted the hips from 8 to 51 cm through the fade, and the body fell again; the sitting is kept
+    assert pushed.kept_motion and "kept the motion it plays" in pushed.note
     # pushed in the last frames of a take that ends sitting: C lies past its end, where the last
     # pose holds (looking ahead there raised a bare ValueError)
     late = react(sitting.slice(0, 126), Impact(124.0, "Chest", (-0.712, 0.596, -0.371), 39.1), library,
