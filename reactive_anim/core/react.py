@@ -63,7 +63,7 @@ from .classify.capture import foot_bodies
 from .classify.features import FeatureReader, feature_rig
 from .classify.outcome import COLLAPSE_HEIGHT, STEP_CLASSES, Outcome, collapsing, judge, way
 from .model.acceleration import accelerations, stride_frames
-from .model.arrays import FloatArray
+from .model.arrays import AnyFloatArray, FloatArray
 from .model.classes import CLASS_SLUGS, CLASSES, is_fall, reaction_class
 from .model.errors import Cancelled, ImpactError, LibraryError, SkeletonError
 from .model.impact import Impact
@@ -322,8 +322,7 @@ def react(
     frame_c = int(bc.frames[-1])
     clock.lap("bc")
     probabilities = _probabilities(classifier, motion, bc, ragdoll)
-    falling = None if impact.reaction is not None else _going_down(motion, bc, ragdoll, impact, library)
-    lying = falling is not None and _played_down(motion, frame_c, feature_rig(ragdoll.rig), bc.floor)
+    falling, lying = (None, False) if impact.reaction is not None else _going_down(motion, bc, ragdoll, impact, library)
     clock.lap("classify")
     query = _query_ending_at(before, frame_c, casting, impact)
     walking = _walking(bc, impact, ragdoll.total_mass)
@@ -568,8 +567,9 @@ def _search(
     order: a sway or a single step while `walking` (_walking), the walk kept; else the probable
     classes (search_with_fallback). When the library lacks the predicted class (or, with no
     classifier, has only falls), `rule` (the outcome rule's verdict, asked only then) decides: see
-    _missing_class. A body already down while the motion it plays lies on the floor (`lying`: an
-    earlier fall still playing) keeps that motion when the nearest fall window stands (_stands_over)."""
+    _missing_class. A body down or going down while the motion it plays goes to the floor within
+    DOWN_AHEAD (`lying`: an earlier fall still playing, _going_down) keeps that motion when no fall
+    window is within the threshold and the nearest stands (_stands_over)."""
     if impact.reaction is not None:
         return _Choice(search(library, query, [impact.reaction], settings.search_threshold))
     ranked = range(len(CLASS_SLUGS)) if probabilities is None else np.argsort(-probabilities, kind="stable")
@@ -610,15 +610,19 @@ def _search(
 
 
 def _stands_over(library: Library, query: Query, match: Match) -> bool:
-    """Whether the match's window ends with the hips more than STANDS_OVER higher than the query's
-    last frame (C). A sitting body pushed again was matched to a fall's standing first window (Eq. 1
-    cost 85, over the threshold, but the nearest fall): the hips rose from 8 to 51 cm through the
-    fade, and the body fell again."""
-    start = np.flatnonzero((library.clip_index == match.clip_index) & (library.frame_index == match.jump_frame))
-    end = int(start[0]) + library.window - 1
+    """Whether the match's window ends with the hips more than STANDS_OVER higher over the lowest of
+    the searched joints than the query's last frame (C) has them (over the lowest joint, not the
+    floor: neither a clip's floor nor a character's need be at z = 0). A sitting body pushed again
+    was matched to a fall's standing first window (Eq. 1 cost 85, over the threshold, but the
+    nearest fall): the hips rose from 8 to 51 cm through the fade, and the body fell again."""
+    end = library.clip_start(match.clip_index) + match.jump_frame + library.window - 1
+    return bool(_hips_up(library.frames.pos_local[end]) - _hips_up(query.features.pos_local[-1]) > STANDS_OVER)
+
+
+def _hips_up(pos_local: AnyFloatArray) -> float:
+    """The hips' height over the lowest of the searched joints (SEARCH_ROLES) in one frame (15, 3)."""
     hips = [SEARCH_ROLES.index("hip_l"), SEARCH_ROLES.index("hip_r")]
-    rise = library.frames.pos_local[end, hips, 2].mean() - query.features.pos_local[-1, hips, 2].mean()
-    return bool(rise > STANDS_OVER)
+    return float(pos_local[hips, 2].mean() - pos_local[:, 2].min())
 
 
 def _with_push(classes: list[str], off: frozenset[str]) -> list[str]:
@@ -707,23 +711,26 @@ def _missing_class(
                          f"({why})", near[0])  # fmt: skip
 
 
-def _going_down(motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact, library: Library) -> str | None:
+def _going_down(
+    motion: Motion, bc: SimResult, ragdoll: Ragdoll, impact: Impact, library: Library
+) -> tuple[str | None, bool]:
     """The outcome rule's fall when the body is already down at C (a body other than the feet on the
     floor) or going down (low and sinking, outcome.collapsing; or low while the motion it plays goes
-    to the floor, _played_down), else None (also when the library has no falls). The classifier
-    learnt from pushes on walks, runs and stands and has not seen such states: a push during an
-    earlier reaction's deep crouch, the hips low and sinking fast, came out a sway with certainty
-    and the character stood up out of the collapse (how often: docs/measurements.md, "Limits and
-    rules"); a body lying on the floor was given a sway and stood up."""
+    to the floor, _played_down), else None (also when the library has no falls); and whether the
+    motion it plays goes to the floor so (an earlier fall still playing). The classifier learnt
+    from pushes on walks, runs and stands and has not seen such states: a push during an earlier
+    reaction's deep crouch, the hips low and sinking fast, came out a sway with certainty and the
+    character stood up out of the collapse (how often: docs/measurements.md, "Limits and rules"); a
+    body lying on the floor was given a sway and stood up."""
     if not any(is_fall(slug) for slug in library.class_ranges):
-        return None
+        return None, False
     rig = feature_rig(ragdoll.rig)
     on_floor = np.delete(bc.contacts[-1], foot_bodies(ragdoll)).any()
     low = bc.com[-1][2] - bc.floor < COLLAPSE_HEIGHT * rig.leg_length
     played_down = low and _played_down(motion, int(bc.frames[-1]), rig, bc.floor)
     if not (on_floor or played_down or collapsing(rig, bc.com[-1], bc.com_velocity[-1], bc.floor)):
-        return None
-    return _judge(motion, bc, ragdoll, impact, going_down=played_down).reaction
+        return None, False
+    return _judge(motion, bc, ragdoll, impact, going_down=played_down).reaction, played_down
 
 
 def _played_down(motion: Motion, frame_c: int, rig: Rig, floor: float) -> bool:
@@ -855,7 +862,8 @@ def _calm_end(clip: Motion, frame_e: int, shortest: int, longest: int, rig: Rig)
     """The transition's length in frames, from `shortest` to `longest`, that ends it (F) where the
     clip's pelvis accelerates least over F and the frames either side of it (on a tie, the
     shortest): a fade into a fall that ends as the body lands on the floor hands the seam the
-    landing's jolt (ReactionSettings.fall_transition). Frames past the clip's end are not tried."""
+    landing's jolt (ReactionSettings.fall_transition). Frames past the clip's end are not tried.
+    Measured over a 1/30 s stride (model/acceleration.py), as the seams are judged, at any rate."""
     stride = stride_frames(clip.fps)
     longest = min(longest, clip.num_frames - 2 - stride - frame_e)
     first = frame_e + shortest - 1 - stride  # a stride before F - 1 at the shortest

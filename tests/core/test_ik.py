@@ -11,8 +11,9 @@ from __future__ import annotations
 from itertools import pairwise
 
 import numpy as np
+import pytest
 
-from reactive_anim.core.model import bvh
+from reactive_anim.core.model import bvh, quat
 from reactive_anim.core.model.rig import Rig
 from reactive_anim.core.transition.ik import two_bone_ik
 from tests.support.mocap import REPO
@@ -87,3 +88,36 @@ def test_a_knee_s_plane_turns_gradually_as_its_bend_turns_backward() -> None:
     offsets = [_lifted(20.0, heading)[1] for heading in np.arange(90.0, 182.0, 2.0)]
     turns = [_turn(a, b) for a, b in pairwise(offsets)]
     assert max(turns) < 15.0, np.round(turns, 1)
+
+
+def _bent_straight_back(abduct: float, lean: float) -> tuple[np.ndarray, np.ndarray]:
+    """The right thigh swung out `abduct` degrees to the side, the knee bent 30 degrees straight
+    back but for `lean` (of a radian) toward the front; its offset from the hip-ankle line before
+    and after the ankle is lifted 5 cm."""
+    pos, glob = IDLE.slice(0, 1).global_transforms()
+    hip, knee, ankle = (RIG.joints[name] for name in ("hip_r", "knee_r", "ankle_r"))
+    thigh = float(np.linalg.norm(pos[0, knee] - pos[0, hip]))
+    shin = float(np.linalg.norm(pos[0, ankle] - pos[0, knee]))
+    along = np.array([0.0, -np.sin(np.radians(abduct)), -np.cos(np.radians(abduct))])
+    left, forward = np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0])
+    square = left - along * np.dot(left, along)
+    axis = square / np.linalg.norm(square) + lean * forward
+    axis /= np.linalg.norm(axis)
+    shin_dir = quat.rotate(quat.from_axis_angle(-axis, np.radians(30.0)), along)
+    pos[0, knee] = pos[0, hip] + thigh * along
+    pos[0, ankle] = pos[0, knee] + shin * shin_dir
+    before = _off_line(pos[0, hip], pos[0, knee], pos[0, ankle])
+    goal = pos[:, ankle] + np.array([0.0, 0.0, 0.05])
+    two_bone_ik(IDLE.skeleton, pos, glob, (hip, knee, ankle), goal, np.ones(1), left[None], forward[None])
+    assert np.linalg.norm(pos[0, ankle] - goal[0]) < 1e-6
+    return before, _off_line(pos[0, hip], pos[0, knee], pos[0, ankle])
+
+
+@pytest.mark.parametrize("abduct", [0.0, 45.0, 60.0])
+def test_a_knee_bent_straight_back_is_rebuilt_however_far_the_thigh_is_swung_out(abduct: float) -> None:
+    """Judged against the whole left-right line, a knee bent straight back under a thigh swung out
+    45 degrees or more read as only partly backward, and its two candidate planes lay half a turn
+    apart: a thousandth of a radian either way turned it 70-139 degrees."""
+    _, ahead = _bent_straight_back(abduct, 1e-3)
+    _, behind = _bent_straight_back(abduct, -1e-3)
+    assert _turn(ahead, behind) < 1.0

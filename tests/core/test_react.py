@@ -26,13 +26,14 @@ from reactive_anim.core.react import (
 )
 from reactive_anim.core.search.library import load_library
 from reactive_anim.core.transition.blend import place
+from reactive_anim.core.transition.fade_shape import SEAM_PELVIS
 from reactive_anim.core.transition.footing import MAX_OFFSET, SWING_CLEARANCE
 from tests.support.mocap import REPO, require_mocap
 from tools.devkit import believability as bl
 from tools.devkit.poses import ground_axes, leg_joints
 
 B = 40  # a frame of the walk with a foot planted
-PELVIS_P99 = 16.5  # m/s^2: the pelvis acceleration's p99 in the shared real walks and runs (docs/measurements.md)
+PELVIS_P99 = SEAM_PELVIS  # m/s^2: the pelvis acceleration's p99 in the shared real walks and runs
 
 
 @pytest.fixture(scope="module")

@@ -159,8 +159,9 @@ class Motion:
         )
 
     def frames(self, first: int, count: int) -> Motion:
-        """`count` frames from `first`, the last frame held past the motion's end."""
-        index = np.minimum(np.arange(first, first + count), self.num_frames - 1)
+        """`count` frames from `first`, the first frame held before the motion's start and the last
+        past its end."""
+        index = np.clip(np.arange(first, first + count), 0, self.num_frames - 1)
         local_pos = None if self.local_pos is None else self.local_pos[index]
         return replace(self, root_pos=self.root_pos[index], local_rot=self.local_rot[index], local_pos=local_pos)
 

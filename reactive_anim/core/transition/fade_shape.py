@@ -47,6 +47,8 @@ def calmest_fade(sim: Motion, clip: Motion, joints: IndexArray, pelvis: int) -> 
     after F. joints: the rig's; pelvis: its index."""
     before, after = fade_context(sim.fps)
     inner = sim.num_frames - before
+    if inner <= before:  # a fade within a stride: nothing to judge the simulation on
+        return fade_weights(inner)
     held = sim.frames(0, sim.num_frames + after)  # weighed 1 there: the clip's frames
     shapes = [np.concatenate([np.zeros(before), fade_weights(inner, *shape), np.ones(after)]) for shape in FADE_SHAPES]
     moves = [_accelerations(blend(held, clip, weights), joints) for weights in shapes]

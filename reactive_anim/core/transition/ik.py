@@ -18,7 +18,7 @@ from ..model.skeleton import Skeleton
 STRAIGHT = np.radians(1.0)
 
 # A bent knee (elbow) bends on in its own plane unless that plane's axis turns the wrong way round
-# the body's left-right line (its cosine to the line from BACKWARD[0] on), and in the rebuilt plane
+# the body's left-right line, square to the thigh (its cosine to it from BACKWARD[0] on), and in the rebuilt plane
 # from BACKWARD[1] (73 and 37 degrees from the wrong way); between the two it is turned about the
 # thigh from the one toward the other in proportion. A limb swung out to the side bends about an
 # axis near right angles to that line, on either side of it from frame to frame. Tested by its
@@ -72,12 +72,15 @@ def two_bone_ik(
     # is turned about the thigh from the kept toward the rebuilt (BACKWARD).
     plane = np.cross(h - k, a - k)
     now = np.arccos(np.clip(np.sum(unit(h - k) * unit(a - k), axis=-1), -1.0, 1.0))
-    tilt = np.sum(unit(plane) * left[t], axis=-1)
-    rebuilt_share = np.clip((tilt - BACKWARD[0]) / (BACKWARD[1] - BACKWARD[0]), 0.0, 1.0)
-    rebuilt_share[np.pi - now <= STRAIGHT] = 1.0
     along = unit(k - h)
     hinge = left[t] - along * np.sum(left[t] * along, axis=-1, keepdims=True)
-    hinge = np.where((np.linalg.norm(hinge, axis=-1) < 1e-6)[:, None], plane, hinge)  # a thigh along the hips
+    sideways = np.linalg.norm(hinge, axis=-1) < 1e-6  # a thigh along the hips: its own plane
+    hinge = np.where(sideways[:, None], plane, hinge)
+    # against the hinge, not the left-right line itself: a thigh swung out to the side leaves less
+    # of that line square to it, and a knee bent straight back read under BACKWARD[1]
+    tilt = np.where(sideways, -1.0, np.sum(unit(plane) * unit(hinge), axis=-1))
+    rebuilt_share = np.clip((tilt - BACKWARD[0]) / (BACKWARD[1] - BACKWARD[0]), 0.0, 1.0)
+    rebuilt_share[np.pi - now <= STRAIGHT] = 1.0
     bend = np.pi - want  # 0: straight
     rebuilt = [quat.rotate(quat.from_axis_angle(unit(hinge), sign * bend), along) for sign in (1.0, -1.0)]
     backward = np.sum(rebuilt[0] * forward[t], axis=-1) <= np.sum(rebuilt[1] * forward[t], axis=-1)
