@@ -372,8 +372,7 @@ def react(
     if thrown and min(frame_c - lead, frame_e) >= before_c:
         sim_cf = sim.slice(frame_c - lead - before_c, sim.num_frames)
         clip_cf = clip.frames(frame_e - before_c, before_c + steps + 1 + after_f)
-        joints = np.array(sorted(set(ragdoll.rig.joints.values())))
-        fade = calmest_fade(sim_cf, clip_cf, joints, ragdoll.rig.joint("pelvis"))
+        fade = calmest_fade(sim_cf, clip_cf, ragdoll.rig)
     transition = blend(sim.slice(frame_c - lead, sim.num_frames), clip_ef, fade)
     to_c = (before.slice(0, lead), sim.slice(0, frame_c - lead))
     if match is None:  # the motion plays on from F; the reaction ends there

@@ -16,6 +16,7 @@ import pytest
 from reactive_anim.core.classify.classifier import load_classifier
 from reactive_anim.core.model import bvh, quat
 from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.model.rig import Rig
 from reactive_anim.core.model.skeleton import Motion
 from reactive_anim.core.react import ReactionSettings, character_ragdoll, react
 from reactive_anim.core.search.library import load_library
@@ -26,6 +27,7 @@ from tools.devkit import believability as bl
 from tools.devkit.poses import ground_axes
 
 WALK = bvh.read_bvh(REPO / "sample_clips" / "walk.bvh")
+RIG = Rig.of(WALK.skeleton)
 INNER = 30  # the fade's frames
 
 
@@ -58,7 +60,7 @@ def _moves(sim: Motion, clip: Motion, inner: np.ndarray) -> tuple[float, float]:
 
 
 def _fade(sim: Motion, clip: Motion) -> np.ndarray:
-    return calmest_fade(sim, clip, np.arange(WALK.skeleton.num_joints), 0)
+    return calmest_fade(sim, clip, RIG)
 
 
 def test_a_tumbling_body_is_faded_along_a_calmer_shape() -> None:

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..model.acceleration import accelerations, stride_frames
 from ..model.arrays import FloatArray, IndexArray
+from ..model.rig import Rig
 from ..model.skeleton import Motion
 from .blend import blend, fade_weights
 
@@ -41,23 +42,27 @@ def fade_context(fps: float) -> tuple[int, int]:
     return stride, stride + 1
 
 
-def calmest_fade(sim: Motion, clip: Motion, joints: IndexArray, pelvis: int) -> FloatArray:
+def calmest_fade(sim: Motion, clip: Motion, rig: Rig) -> FloatArray:
     """The weights of the C..F fade from `sim` into `clip`: `sim` from fade_context's frames
     before C to F (its own frames only), `clip` from as many before C to fade_context's frames
-    after F. joints: the rig's; pelvis: its index."""
+    after F; judged on the joints the rig's roles name. The other shapes are blended only where
+    the plain one adds to what the sources do."""
     before, after = fade_context(sim.fps)
     inner = sim.num_frames - before
     if inner <= before:  # a fade within a stride: nothing to judge the simulation on
         return fade_weights(inner)
+    joints = np.array(sorted(set(rig.joints.values())))
+    pelvis = int(np.searchsorted(joints, rig.joint("pelvis")))
     held = sim.frames(0, sim.num_frames + after)  # weighed 1 there: the clip's frames
     shapes = [np.concatenate([np.zeros(before), fade_weights(inner, *shape), np.ones(after)]) for shape in FADE_SHAPES]
-    moves = [_accelerations(blend(held, clip, weights), joints) for weights in shapes]
-    peaks = [float(np.nanmax(m)) for m in moves]
+    plain = _accelerations(blend(held, clip, shapes[0]), joints)
     alone = max(float(np.nanmax(_accelerations(sim, joints))), float(np.nanmax(_accelerations(clip, joints))))
-    if peaks[0] <= alone * (1.0 + MARGIN):
+    if np.nanmax(plain) <= alone * (1.0 + MARGIN):
         return shapes[0][before:-after]
+    moves = [plain] + [_accelerations(blend(held, clip, weights), joints) for weights in shapes[1:]]
+    peaks = [float(np.nanmax(m)) for m in moves]
     f = before + inner - 1
-    at_f = [float(np.nanmax(m[f - 1 : f + 2, list(joints).index(pelvis)])) for m in moves]
+    at_f = [float(np.nanmax(m[f - 1 : f + 2, pelvis])) for m in moves]
     calm = [k for k in range(1, len(shapes)) if at_f[k] <= max(at_f[0], SEAM_PELVIS)]
     best = min(calm, key=lambda k: peaks[k], default=0)
     chosen = best if peaks[best] < peaks[0] * (1.0 - MARGIN) else 0
