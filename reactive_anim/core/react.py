@@ -63,7 +63,7 @@ from .classify.capture import foot_bodies
 from .classify.features import FeatureReader, feature_rig
 from .classify.outcome import COLLAPSE_HEIGHT, STEP_CLASSES, Outcome, collapsing, judge, way
 from .model.acceleration import accelerations, stride_frames
-from .model.arrays import AnyFloatArray, FloatArray
+from .model.arrays import FloatArray, IndexArray
 from .model.classes import CLASS_SLUGS, CLASSES, is_fall, reaction_class
 from .model.errors import Cancelled, ImpactError, LibraryError, SkeletonError
 from .model.impact import Impact
@@ -74,9 +74,9 @@ from .physics.ragdoll import Ragdoll, build_ragdoll
 from .physics.simulate import SimResult, simulate_push, track
 from .physics.workspace import BC_GAINS, Workspace
 from .search.library import Library
+from .search.reach import reachable_windows
 from .search.search import Match, search, search_with_fallback
 from .search.window import (
-    SEARCH_ROLES,
     TABLE2_POSITION_WEIGHTS,
     TABLE2_ROTATION_WEIGHTS,
     Query,
@@ -102,9 +102,6 @@ RESUME_FADE = 0.4
 RESUME_LEFT = 2
 DOWN_AHEAD = 0.5  # s after C within which the motion being played reaching the floor counts (_going_down)
 DOWN_HEIGHT = 0.5  # leg lengths: a pelvis this low over the floor sits, kneels or lies (_going_down)
-# m on the library's skeleton: a fall window whose hips end this much higher than the body's at C
-# stands where the body lies (_stands_over)
-STANDS_OVER = 0.3
 STILL_KEPT = 0.5  # s of a clip's still tail played before the motion resumes or a get-up begins
 CARRY_TIME = 0.15  # s over which theta_blend lets go of the body's departure at C (blend.carry; measured 0.15-0.25)
 # s over which CD's servos stiffen from BC's gains (simulate.track's ramp): switched on at once they
@@ -567,20 +564,22 @@ def _search(
     classes (search_with_fallback). When the library lacks the predicted class (or, with no
     classifier, has only falls), `rule` (the outcome rule's verdict, asked only then) decides: see
     _missing_class. A body down or going down while the motion it plays goes to the floor within
-    DOWN_AHEAD (`lying`: an earlier fall still playing, _going_down) keeps that motion when no fall
-    window is within the threshold and the nearest stands (_stands_over)."""
+    DOWN_AHEAD (`lying`: an earlier fall still playing, _going_down) is faded only into fall windows
+    it can reach (reach.reachable_windows), and keeps that motion when none of the push's way is."""
     if impact.reaction is not None:
         return _Choice(search(library, query, [impact.reaction], settings.search_threshold))
     ranked = range(len(CLASS_SLUGS)) if probabilities is None else np.argsort(-probabilities, kind="stable")
     order = [CLASS_SLUGS[k] for k in ranked]
     if falling is not None:
         falls = _with_push([falling] + [slug for slug in order if is_fall(slug) and slug != falling], off)
-        match = search_with_fallback(library, query, falls, settings.search_threshold)
-        if lying and not match.accepted and _stands_over(library, query, match):
-            return _Choice(None, f"no fall clip lies down where the body is ({match.clip} would stand it up): "
-                                 "kept the motion it plays, the hit simulated", falling)  # fmt: skip
+        allowed = reachable_windows(library, query) if lying else None
+        reachable = falls if allowed is None else [slug for slug in falls if allowed[_windows(library, slug)].any()]
+        if not reachable:
+            return _Choice(None, "no fall clip of the push's way lies as the body does (each would stand it up or "
+                                 "turn it over): kept the motion it plays, the hit simulated", falling)  # fmt: skip
+        match = search_with_fallback(library, query, reachable, settings.search_threshold, allowed=allowed)
         turned = f"the outcome rule's {falling} {OFF_PUSH}; played {match.reaction_class}"
-        return _Choice(match, turned if falls[0] != falling else "")
+        return _Choice(match, turned if reachable[0] != falling else "")
     chance = {} if probabilities is None else dict(zip(CLASS_SLUGS, map(float, probabilities), strict=True))
     turned = f"the classifier's {order[0]} {OFF_PUSH}; " if probabilities is not None and order[0] in off else ""
     ranked_all, order = order, _with_push(order, off)
@@ -608,20 +607,9 @@ def _search(
     return _Choice(match, note)
 
 
-def _stands_over(library: Library, query: Query, match: Match) -> bool:
-    """Whether the match's window ends with the hips more than STANDS_OVER higher over the lowest of
-    the searched joints than the query's last frame (C) has them (over the lowest joint, not the
-    floor: neither a clip's floor nor a character's need be at z = 0). A sitting body pushed again
-    was matched to a fall's standing first window (Eq. 1 cost 85, over the threshold, but the
-    nearest fall): the hips rose from 8 to 51 cm through the fade, and the body fell again."""
-    end = library.clip_start(match.clip_index) + match.jump_frame + library.window - 1
-    return bool(_hips_up(library.frames.pos_local[end]) - _hips_up(query.features.pos_local[-1]) > STANDS_OVER)
-
-
-def _hips_up(pos_local: AnyFloatArray) -> float:
-    """The hips' height over the lowest of the searched joints (SEARCH_ROLES) in one frame (15, 3)."""
-    hips = [SEARCH_ROLES.index("hip_l"), SEARCH_ROLES.index("hip_r")]
-    return float(pos_local[hips, 2].mean() - pos_local[:, 2].min())
+def _windows(library: Library, slug: str) -> IndexArray:
+    """A class's windows in the library's search index (none for a class it lacks)."""
+    return library.search_index().windows_of([slug])
 
 
 def _with_push(classes: list[str], off: frozenset[str]) -> list[str]:

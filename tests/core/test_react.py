@@ -638,7 +638,8 @@ def test_a_push_on_a_character_sitting_on_the_floor_starts_from_its_pose(library
     chest while sitting: the sitting hips are flexed 154 degrees, beyond the ragdoll's 120. Clamped
     to the limit at the start, the legs swung 30 cm into the floor and the contacts threw the body a
     metre up; the run now starts in the mocap's pose and the hips stay near the floor, to F and on:
-    no fall clip lies down where the body sits, so the sitting is kept (react._stands_over).
+    no fall window of the push's way lies as the body does (reach.reachable_windows), so the
+    sitting is kept.
     The second push lands as the first fall goes down: the ragdoll, low, bounces off the floor in BC
     and is rising at C; the classifier says a step, which stood the falling body up. The body is low
     and the motion it plays lies within half a second, so it falls on (react._played_down). (The

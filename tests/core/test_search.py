@@ -142,6 +142,29 @@ def test_other_weights_stay_exact(synthetic) -> None:
             assert cost == pytest.approx(reference_cost(synthetic, start, query, pw, rw), rel=1e-5)
 
 
+def test_only_allowed_windows_are_returned_and_the_best_of_them(synthetic) -> None:
+    """With some windows ruled out (reach.reachable_windows on a body on the floor), both strategies
+    return the window the exact costs put first among the rest: the query's own window is ruled out,
+    so the answer must differ from the unrestricted one; with none allowed in scope, an error."""
+    index = synthetic.search_index()
+    wp, wq = joint_weights(TABLE2_POSITION_WEIGHTS), joint_weights(TABLE2_ROTATION_WEIGHTS)
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        query = random_query(synthetic, rng, 0.01, 0.02)
+        costs = window_costs(synthetic.frames, index.starts, query, wp, wq)
+        allowed = rng.random(len(index.starts)) < 0.5
+        allowed[np.argmin(costs)] = False
+        expected = index.starts[allowed][np.argmin(costs[allowed])]
+        for strategy in STRATEGIES:
+            best = search_index.find_best(index, query, list(index.class_windows), wp, wq, strategy=strategy,
+                                          allowed=allowed)  # fmt: skip
+            assert best.start == expected, strategy
+        match = search(synthetic, query, allowed=allowed)
+        assert synthetic.clip_start(match.clip_index) + match.jump_frame == expected
+        with pytest.raises(LibraryError, match="allowed"):
+            search(synthetic, query, ["step_back"], allowed=np.zeros(len(index.starts), dtype=bool))
+
+
 def test_each_scope_searches_the_way_measured_faster(synthetic) -> None:
     """Building the index times scan and walk for the whole library and each class and keeps the
     faster; a scope of several classes goes by its size; an unknown strategy is refused."""

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.arrays import FloatArray
+from ..model.arrays import BoolArray, FloatArray
 from ..model.classes import CLASS_SLUGS
 from ..model.errors import LibraryError
 from .library import Library
@@ -59,11 +59,13 @@ def search(
     *,
     position_weights: dict[str, float] = TABLE2_POSITION_WEIGHTS,
     rotation_weights: dict[str, float] = TABLE2_ROTATION_WEIGHTS,
+    allowed: BoolArray | None = None,
 ) -> Match:
     """The best (clip, frame) for the query window by Eq. 1, over all classes or the given ones.
 
     The match is returned with its cost even when above `threshold` (then `accepted` is False), so
-    the caller can decide to widen the search; see `search_with_fallback`.
+    the caller can decide to widen the search; see `search_with_fallback`. allowed: per window of
+    the library's search index, whether it may be chosen (reach.reachable_windows; None: all).
     """
     if query.window != library.window:
         raise LibraryError(
@@ -80,7 +82,9 @@ def search(
     if len(tops) == 0:
         raise LibraryError(f"no clip in {scope!r} is long enough for a {library.window}-frame window")
     wp, wq = joint_weights(position_weights), joint_weights(rotation_weights)
-    best = find_best(index, query, slugs, wp, wq)
+    best = find_best(index, query, slugs, wp, wq, allowed=allowed)
+    if best.start < 0:
+        raise LibraryError(f"no window of {scope!r} is among the allowed ones")
     return _match(library, query, best, threshold is None or best.cost <= threshold, scope)
 
 
@@ -92,6 +96,7 @@ def search_with_fallback(
     *,
     position_weights: dict[str, float] = TABLE2_POSITION_WEIGHTS,
     rotation_weights: dict[str, float] = TABLE2_ROTATION_WEIGHTS,
+    allowed: BoolArray | None = None,
 ) -> Match:
     """Try the predicted class, then the next ones in `class_order`: the first match within
     `threshold`; if none is, the first class's best (not accepted), since the class comes from what
@@ -100,20 +105,24 @@ def search_with_fallback(
     replaced the predicted class in 159 of 332 random pushes: backward falls by forward rolls,
     single steps by falls). Only when the library has none of the classes is the whole library
     searched. `Match.scope` says which search produced it, for the pipeline to report. An unknown
-    class slug is an error.
+    class slug is an error. allowed: as for `search` (then every class given must have an allowed window).
     """
-    weights = {"position_weights": position_weights, "rotation_weights": rotation_weights}
+
+    def best_of(classes: list[str] | None) -> Match:
+        return search(library, query, classes, threshold, position_weights=position_weights,
+                      rotation_weights=rotation_weights, allowed=allowed)  # fmt: skip
+
     first = None
     for slug in class_order:
         if slug not in CLASS_SLUGS:
             library.require_class(slug)  # raises, naming the slug and the known classes
         if slug not in library.class_ranges:
             continue
-        match = search(library, query, [slug], threshold, **weights)
+        match = best_of([slug])
         if match.accepted:
             return match
         first = first or match
-    return first or search(library, query, None, threshold, **weights)
+    return first or best_of(None)
 
 
 def _match(library: Library, query: Query, best: Best, accepted: bool, scope: str) -> Match:

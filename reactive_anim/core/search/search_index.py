@@ -29,7 +29,7 @@ from typing import Protocol
 import numpy as np
 
 from ..model import quat
-from ..model.arrays import AnyFloatArray, Float32Array, FloatArray, IndexArray, Int32Array, IntArray
+from ..model.arrays import AnyFloatArray, BoolArray, Float32Array, FloatArray, IndexArray, Int32Array, IntArray
 from .search_bounds import (
     SUMMARY_ROWS,
     QueryArrays,
@@ -284,13 +284,16 @@ def find_best(
     wq: FloatArray,
     *,
     strategy: str | None = None,
+    allowed: BoolArray | None = None,
 ) -> Best:
     """Exact best window of the given classes for the query. wp, wq: per-joint weights
-    (window.joint_weights). strategy: "scan" or "walk"; default the faster one for these classes."""
+    (window.joint_weights). strategy: "scan" or "walk"; default the faster one for these classes.
+    allowed: per window (`starts` order), whether it may be returned (None: all); the bounds of a
+    node hold for any part of its windows, so the search stays exact."""
     strategy = strategy or index.strategy(classes)
     if strategy not in STRATEGIES:
         raise ValueError(f"unknown search strategy {strategy!r}; strategies are: {', '.join(STRATEGIES)}")
-    candidates = _Candidates(index, query, wp, wq)
+    candidates = _Candidates(index, query, wp, wq, allowed)
     if strategy == "scan":
         _scan(candidates, index.windows_of(classes))
     else:
@@ -304,8 +307,10 @@ class _Candidates:
     windows straight to their exact cost, which gives a first best); `finish` computes the exact
     cost of those still in and returns the best."""
 
-    def __init__(self, index: SearchIndex, query: Query, wp: FloatArray, wq: FloatArray) -> None:
-        self.index, self.query = index, query
+    def __init__(
+        self, index: SearchIndex, query: Query, wp: FloatArray, wq: FloatArray, allowed: BoolArray | None = None
+    ) -> None:
+        self.index, self.query, self.allowed = index, query, allowed
         self.wp, self.wq = wp, wq
         self.arrays = QueryArrays(query, wp, wq)
         self.best = np.float32(np.inf)  # the lowest upper end of a window's cost so far
@@ -315,6 +320,7 @@ class _Candidates:
 
     def offer(self, cands: IndexArray) -> None:
         """Rule out what the summary bound can, then refine the rest cheapest first."""
+        cands = self.kept_in(cands)
         if len(cands) == 0:
             return
         arrays = self.arrays
@@ -322,6 +328,10 @@ class _Candidates:
         keep = bound <= self.best
         order = np.argsort(bound[keep], kind="stable")
         self.refine(cands[keep][order], bound[keep][order])
+
+    def kept_in(self, cands: IndexArray) -> IndexArray:
+        """The windows among `cands` the search may return."""
+        return cands if self.allowed is None else cands[self.allowed[cands]]
 
     def refine(self, cands: IndexArray, full: Float32Array) -> None:
         """Windows sorted by their full summary bounds `full`: the first ones' exact costs if none is
@@ -373,6 +383,7 @@ def _float32_at_least(value: float) -> np.float32:
 def _scan(candidates: _Candidates, cands: IndexArray) -> None:
     """The plain pass: every window's summary bound at once, then the exact and near-exact stages
     cheapest first."""
+    cands = candidates.kept_in(cands)
     if len(cands) == 0:
         return
     contiguous = cands[-1] - cands[0] + 1 == len(cands)
