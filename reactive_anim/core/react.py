@@ -63,7 +63,7 @@ from .classify.capture import foot_bodies
 from .classify.features import FeatureReader, feature_rig
 from .classify.outcome import COLLAPSE_HEIGHT, STEP_CLASSES, Outcome, collapsing, judge, way
 from .model.acceleration import accelerations, stride_frames
-from .model.arrays import FloatArray, IndexArray
+from .model.arrays import BoolArray, FloatArray, IndexArray
 from .model.classes import CLASS_SLUGS, CLASSES, is_fall, reaction_class
 from .model.errors import Cancelled, ImpactError, LibraryError, SkeletonError
 from .model.impact import Impact
@@ -563,20 +563,23 @@ def _search(
     order: a sway or a single step while `walking` (_walking), the walk kept; else the probable
     classes (search_with_fallback). When the library lacks the predicted class (or, with no
     classifier, has only falls), `rule` (the outcome rule's verdict, asked only then) decides: see
-    _missing_class. A body down or going down while the motion it plays goes to the floor within
-    DOWN_AHEAD (`lying`: an earlier fall still playing, _going_down) is faded only into fall windows
-    it can reach (reach.reachable_windows), and keeps that motion when none of the push's way is."""
+    _missing_class. A body down or going down is faded only into fall windows it can reach over the
+    fade (reach.reachable_windows); when none of the push's way is, one whose motion goes to the floor
+    within DOWN_AHEAD (`lying`: an earlier fall still playing, _going_down) keeps that motion, and
+    one going down for the first time takes the nearest fall."""
     if impact.reaction is not None:
         return _Choice(search(library, query, [impact.reaction], settings.search_threshold))
     ranked = range(len(CLASS_SLUGS)) if probabilities is None else np.argsort(-probabilities, kind="stable")
     order = [CLASS_SLUGS[k] for k in ranked]
     if falling is not None:
         falls = _with_push([falling] + [slug for slug in order if is_fall(slug) and slug != falling], off)
-        allowed = reachable_windows(library, query) if lying else None
-        reachable = falls if allowed is None else [slug for slug in falls if allowed[_windows(library, slug)].any()]
-        if not reachable:
+        allowed: BoolArray | None = reachable_windows(library, query, round(settings.transition * library.fps))
+        reachable = [slug for slug in falls if allowed[_windows(library, slug)].any()]
+        if not reachable and lying:
             return _Choice(None, "no fall clip of the push's way lies as the body does (each would stand it up or "
                                  "turn it over): kept the motion it plays, the hit simulated", falling)  # fmt: skip
+        if not reachable:  # a body going down for the first time falls anyway: the nearest fall
+            allowed, reachable = None, falls
         match = search_with_fallback(library, query, reachable, settings.search_threshold, allowed=allowed)
         turned = f"the outcome rule's {falling} {OFF_PUSH}; played {match.reaction_class}"
         return _Choice(match, turned if reachable[0] != falling else "")

@@ -64,3 +64,19 @@ def test_face_down_and_face_up_are_further_apart_than_the_turn_allowed(library) 
     )
     up = up_in_body(np.asarray(library.frames.pos_local[ends[clip_window(library, "fall_backward_hands_1.bvh", True)]]))
     assert np.degrees(np.arccos(np.clip(down @ up, -1.0, 1.0))) > 2 * TURN_MOST
+
+
+def test_the_fade_s_frames_count_and_stop_at_the_clip_s_end(library) -> None:
+    """Over the frames a fade passes through after E: a roll's window early in the roll turns the body
+    over within half a second, so a body posed as at its E cannot be faded into it (faded so, a body
+    not rolling was turned through a headstand); a clip's last window holds its last pose past its
+    end rather than reading the next clip's standing first frames."""
+    fade = round(0.5 * library.fps)
+    index = library.search_index()
+    roll = next(k for k, c in enumerate(library.clips) if c.name == "fall_forward_roll_1.bvh")
+    windows = np.flatnonzero(library.clip_index[index.starts] == roll)
+    turned_over = [w for w in windows if not reachable_windows(library, query_of(library, int(w)), fade)[w]]
+    assert turned_over and all(reachable_windows(library, query_of(library, int(w)))[w] for w in turned_over)
+    for clip in library.clips:
+        last = clip_window(library, clip.name, last=True)
+        assert reachable_windows(library, query_of(library, last), fade)[last], clip.name

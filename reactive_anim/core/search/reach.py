@@ -8,12 +8,17 @@ from 8 to 51 cm and the body fell again. With a few millimetres of hand moved, t
 matched to a sitting window (cost 73) while the body lay back: the fade turned the hips 129 degrees
 (16 a frame) and swept a toe 69 cm through the floor (docs/measurements.md, session 9).
 
-A window is out of reach when its last frame (E, where the fade lands) has the hips more than
-HIPS_RISE higher over the lowest searched joint than the body at C (a lying body stood up), or
-the body turned more than TURN_MOST away from the body's at C with respect to the vertical
-(lying back against sitting up, face down against face up). The turn is read from the body's own
-axes (hips to neck, hip to hip), so it does not depend on how the heading is read from a body
-lying down. Heights are over the lowest joint, not z = 0: neither a clip's floor nor a
+A window is out of reach when, in its last frame (E, where the fade into the clip starts) or the
+frames the fade then passes through, the clip has the hips more than HIPS_RISE higher over the
+lowest searched joint than the body at C (a lying body stood up), or the body turned more than
+TURN_MOST away from the body's at C with respect to the vertical (lying back against sitting up,
+face down against face up). The fade's frames count, not E's alone: the fade takes the body to
+the clip's pose at F whether the clip gets there by its own motion or not. A kneeling body bent
+forward, pushed again from the front, was 57 degrees from a backward sit's E but 72 from its
+frames 9 later, where the clip sits up; faded in, the hips rose from 0.26 to 0.72 m and the body
+fell again. A roll's window early in the roll turns a body not rolling over within the fade. The
+turn is read from the body's own axes (hips to neck, hip to hip), so it does not depend on how
+the heading is read from a body lying down. Heights are over the lowest joint, not z = 0: neither a clip's floor nor a
 character's need be there.
 """
 
@@ -34,14 +39,19 @@ _HIPS = [SEARCH_ROLES.index("hip_l"), SEARCH_ROLES.index("hip_r")]
 _NECK = SEARCH_ROLES.index("neck")
 
 
-def reachable_windows(library: Library, query: Query) -> BoolArray:
+def reachable_windows(library: Library, query: Query, fade: int = 0) -> BoolArray:
     """Per window of the library's search index (SearchIndex.starts order), whether a body posed as
-    the query's last frame can be faded into the window's last frame."""
+    the query's last frame can be faded into the clip from the window's last frame on: over that
+    frame and the `fade` frames after it (the library's rate, within the clip), which the fade
+    passes through on its way into the clip."""
     index = library.search_index()
-    ends = library.frames.pos_local[index.starts + library.window - 1].astype(np.float64)
+    ends = index.starts + library.window - 1
+    last = np.searchsorted(library.clip_index, library.clip_index[ends], side="right") - 1
+    frames = np.minimum(ends[:, None] + np.arange(fade + 1), last[:, None])  # (windows, fade + 1)
+    poses = library.frames.pos_local[frames].astype(np.float64)
     body = np.asarray(query.features.pos_local[-1], dtype=np.float64)
-    rise = hips_up(ends) - hips_up(body)
-    turn = np.degrees(np.arccos(np.clip(up_in_body(ends) @ up_in_body(body), -1.0, 1.0)))
+    rise = (hips_up(poses) - hips_up(body)).max(axis=1)
+    turn = np.degrees(np.arccos(np.clip(up_in_body(poses) @ up_in_body(body), -1.0, 1.0))).max(axis=1)
     return (rise <= HIPS_RISE) & (turn <= TURN_MOST)
 
 
