@@ -10,7 +10,8 @@ build, step, BC and CD windows), search (the jump search against the reference),
 pipeline per impact and a 20-impact bake), cast (search costs on other skeletons, retarget time),
 sweep (random pushes baked on every shared file: failures, pops, time), quality (believability:
 pushes on the shared walks, runs and idles measured against real capture; a sample of takes, every
-one with --full; contact sheets of the worst in out/quality), farm (batch bakes per minute in one
+one with --full; contact sheets of the worst in out/quality), chained (a second push while the first
+reaction plays, on the same takes: depth, pops, bodies stood up, seams), farm (batch bakes per minute in one
 process and on a local Dask cluster of 1 and 2 workers, the cluster's cost per task; the farm
 environment). Real mocap comes from
 ../shared/mocap (test and benchmark data only); a group that needs it is skipped with a note where
@@ -26,6 +27,7 @@ from . import quality
 from .blender import bench_blender
 from .bvh import bench_bvh
 from .casting import bench_casting
+from .chained import bench_chained
 from .common import print_table
 from .farm import bench_farm
 from .react import bench_react
@@ -42,9 +44,10 @@ GROUPS: dict[str, Callable[[], None]] = {
     "cast": bench_casting,
     "sweep": bench_sweep,
     "quality": quality.bench_quality,
+    "chained": bench_chained,
     "farm": bench_farm,
 }
-FLAGS = {"--full": "quality: push every shared walk, run and idle, not the sample"}
+FLAGS = {"--full": "quality, chained: push every shared walk, run and idle, not the sample"}
 
 
 def main(argv: list[str]) -> int:

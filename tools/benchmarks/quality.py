@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -381,9 +382,9 @@ class Row:
     met: bool | None
 
 
-def figures(rows: list[dict], refs: References, failures: int) -> list[Row]:
-    """The table's rows (each also reported as a JSON line)."""
-    out: list[Row] = []
+def table_adder(out: list[Row], group: str) -> Callable[..., None]:
+    """add(measure, figure, value, unit, real, goal, met, **context): a row of `out` for the table,
+    also reported as the group's JSON line."""
 
     def add(
         measure: str, figure: str, value: float | np.floating, unit: str, real: str, goal: str,
@@ -394,7 +395,15 @@ def figures(rows: list[dict], refs: References, failures: int) -> list[Row]:
             shown = f"{int(value)} {unit}"
         met = None if met is None else bool(met)
         out.append(Row(measure, figure, shown, real, goal, met))
-        report(GROUP, f"{measure}: {figure}", float(value), unit, real=real, goal=goal, met=met, **ctx)
+        report(group, f"{measure}: {figure}", float(value), unit, real=real, goal=goal, met=met, **ctx)
+
+    return add
+
+
+def figures(rows: list[dict], refs: References, failures: int) -> list[Row]:
+    """The table's rows (each also reported as a JSON line)."""
+    out: list[Row] = []
+    add = table_adder(out, GROUP)
 
     n = len(rows)
     add("reactions", "reactions measured", n, "reactions", "-", "-", None, failed=failures,
