@@ -342,7 +342,9 @@ def react(
         placement = _alignment(at_c, clip_raw.slice(frame_e, frame_e + 1), ragdoll.rig)
         clip = place(clip_raw, *placement)
     steps = max(1, round(settings.transition * motion.fps))
-    if match is not None and is_fall(match.reaction_class) and settings.fall_transition > settings.transition:
+    # a fall, or a body down keeping the fall it plays: F where that lands calmly
+    falls = is_fall(match.reaction_class) if match is not None else falling is not None
+    if falls and settings.fall_transition > settings.transition:
         steps = _calm_end(clip, frame_e, steps, round(settings.fall_transition * motion.fps), ragdoll.rig)
     clip_ef = clip.frames(frame_e, steps + 1)  # E..F; a clip that ends sooner holds its last pose
     # theta_blend: what the character was playing (an earlier reaction, if one plays; a kept walk where

@@ -672,6 +672,29 @@ def test_a_push_on_a_character_sitting_on_the_floor_starts_from_its_pose(library
     assert late.frame_c >= 126 and late.going_down and late.reaction_class.startswith("fall_")
 
 
+def test_a_body_down_keeping_its_fall_hands_it_back_where_the_fall_lands_calmly(library) -> None:
+    """A Bandai Namco stand pushed at 300 N·s from behind rolls forward; hit again from the right at
+    120 N·s 0.8 s after C, the body keeps the fall it plays (no backward or side fall of the push's
+    way lies as it does). Faded back into that fall over the plain half second, F fell as the roll
+    landed: the pelvis at 18.4 m/s^2 within a frame of F, where the roll itself has 11.4. F is now
+    chosen as a fall's is (react._calm_end), where the motion played lands calmly."""
+    motion = bvh.read_bvh(require_mocap("bandai_namco/dataset-1/dataset-1_respond_normal_001.bvh"))
+    forward, _ = ground_axes(motion, 37)
+    classifier = load_classifier()
+    first = react(motion, Impact(37.0, "Chest", tuple(forward), 300.0), library, classifier)
+    played = first.motion
+    assert played is not None
+    b = first.frame_c + round(0.8 * motion.fps)
+    second = react(played, Impact(float(b), "Chest", tuple(ground_axes(played, b)[1]), 120.0), library, classifier,
+                   source=motion)  # fmt: skip
+    assert first.reaction_class == "fall_forward_roll" and second.kept_motion and second.motion is not None
+    pelvis = motion.skeleton.index("Hips")
+    out = bl.acceleration(second.motion.global_positions()[:, pelvis], motion.fps)
+    was = bl.acceleration(played.global_positions()[:, pelvis], motion.fps)
+    f = second.frame_f
+    assert np.nanmax(out[f - 1 : f + 2]) <= max(SEAM_PELVIS, np.nanmax(was[f - 1 : f + 2])), (f, out[f - 1 : f + 2])
+
+
 class Sure:
     """A classifier sure of one class whatever it is shown. The shipped model, trained on pushes on
     walks, runs and stands, said sway at p = 0.72-1.00 for states it never saw (a body low and
