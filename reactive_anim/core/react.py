@@ -376,6 +376,9 @@ def react(
     to_c = (before.slice(0, lead), sim.slice(0, frame_c - lead))
     if match is None:  # the motion plays on from F; the reaction ends there
         out = _join(*to_c, transition, clip.slice(frame_e + steps + 1, clip.num_frames))
+        # where the fade runs past the motion's end, it faded into the motion's last pose held: a
+        # runner stopped dead (a toe at 251 m/s^2); the motion ends where it ends, mid-fade
+        out = out.slice(0, max(min(out.num_frames, motion.num_frames), frame_c + 1))
         clock.lap("blend")
         chained, chain_fade, end_frame = None, [], min(frame_c + steps, out.num_frames - 1)
         out, resumed_at, resume_fade = _resume_or_hold(out, source or motion, 0, 0, ragdoll.rig)

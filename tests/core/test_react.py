@@ -695,6 +695,26 @@ def test_a_body_down_keeping_its_fall_hands_it_back_where_the_fall_lands_calmly(
     assert np.nanmax(out[f - 1 : f + 2]) <= max(SEAM_PELVIS, np.nanmax(was[f - 1 : f + 2])), (f, out[f - 1 : f + 2])
 
 
+def test_a_walk_kept_near_its_end_ends_where_it_ends(library) -> None:
+    """A CMU run (1.4 s, 60 fps) nudged from behind at 40 N·s 0.6 s before its end keeps the run, the
+    hit simulated; its half-second fade back into the run would end past the run's last frame. It
+    faded into that last pose held, and the runner stopped dead within two frames (a toe at 201
+    m/s^2). The run now ends where it ends, mid-fade, and the bake is as long as the take."""
+    motion = bvh.read_bvh(require_mocap("cmu_iclone/002_03.bvh"))
+    ragdoll = character_ragdoll(motion)
+    frame = motion.num_frames - 1 - round(0.6 * motion.fps)
+    forward, _ = ground_axes(motion, frame, ragdoll.roles)
+    reaction = react(motion, Impact(float(frame), ragdoll.roles["chest"], tuple(forward), 40.0), library,
+                     load_classifier(), ragdoll=ragdoll)  # fmt: skip
+    assert reaction.kept_motion and reaction.frame_f > motion.num_frames - 1
+    out = reaction.motion
+    assert out is not None and out.num_frames == motion.num_frames
+    body = bl.body_joints(ragdoll.roles, out)
+    accel = bl.acceleration(out.global_positions()[:, body], out.fps).max(axis=1)
+    accel[bl.hit_mask(len(accel), frame, out.fps)] = np.nan
+    assert np.nanmax(accel[frame:]) < 166.0, np.nanmax(accel[frame:])
+
+
 class Sure:
     """A classifier sure of one class whatever it is shown. The shipped model, trained on pushes on
     walks, runs and stands, said sway at p = 0.72-1.00 for states it never saw (a body low and
