@@ -43,7 +43,7 @@ from ..model.floor import on_floor
 from ..model.rig import Rig
 from ..model.roles import SIDES
 from ..model.skeleton import Motion, Skeleton, root_child
-from .ik import joint_path, plane_span, two_bone_ik
+from .ik import joint_path, two_bone_ik
 from .retarget import foot_points, local_rotations, lowest_foot_point
 
 LOWEST_SCALE = 0.003  # m: a foot point this much higher than its lowest counts 1/e as much for the slide
@@ -152,9 +152,9 @@ def _hold(
         goal[:, 2] += lift
         chain = (joint[f"hip_{side}"], joint[f"knee_{side}"], ankle)
         goal = _eased_reach(goal, *(pos[:, j] for j in chain))
-        two_bone_ik(skeleton, pos, glob, chain, goal, moves.astype(np.float64), left, forward, plane_span(motion.fps))
+        two_bone_ik(skeleton, pos, glob, chain, goal, moves.astype(np.float64), left, forward)
         moved.append((joint_path(skeleton, chain[0], ankle), moves))
-    moved += _hands_out_of_the_floor(skeleton, pos, glob, joint, (left, forward), reaction, floor, motion.fps)
+    moved += _hands_out_of_the_floor(skeleton, pos, glob, joint, (left, forward), reaction, floor)
     return (glob, still_held, moved) if moved else None
 
 
@@ -166,7 +166,6 @@ def _hands_out_of_the_floor(
     axes: tuple[FloatArray, FloatArray],
     rows: BoolArray,
     floor: float,
-    fps: float,
 ) -> list[tuple[list[int], BoolArray]]:
     """Per arm whose hand (the wrist, the joints below it and their end sites) a fade or a cast clip
     put through the floor on `rows`, its joints and the rows turned (in place on pos and glob): the hand lifted
@@ -186,7 +185,7 @@ def _hands_out_of_the_floor(
             goal = pos[:, wrist].copy()
             goal[:, 2] += need
             goal = _eased_reach(goal, *(pos[:, j] for j in chain))
-            two_bone_ik(skeleton, pos, glob, chain, goal, turned.astype(np.float64), -left, -forward, plane_span(fps))
+            two_bone_ik(skeleton, pos, glob, chain, goal, turned.astype(np.float64), -left, -forward)
             moved.append((joint_path(skeleton, chain[0], wrist), turned))
     return moved
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..model import quat
-from ..model.arrays import FloatArray, IndexArray, unit
+from ..model.arrays import FloatArray, unit
 from ..model.skeleton import Skeleton
 
 # rad: a knee (an elbow) bent less than this is straight, its plane rebuilt. At 5 degrees, a kept
@@ -26,12 +26,6 @@ STRAIGHT = np.radians(1.0)
 # lifted out of the floor, crossed it back and forth and flicked between its own plane and the
 # rebuilt one (478 m/s^2 in one frame); any single threshold moves that flick, not removes it.
 BACKWARD = (0.3, 0.8)
-
-# s either side of a frame whose knee (elbow) planes give the frame's plane, each counted by how bent
-# it is (plane_span). A kept walk's knee straightening through 178 and 179 degrees while a held foot
-# asked 35 cm of bend of it had a plane of noise there, 70 degrees from its neighbours': bent in it,
-# the knee flicked 23 cm sideways and back (249 m/s^2). Its bent neighbours' planes hold it.
-PLANE_SPAN = 1.0 / 15.0
 
 
 def arc(u: FloatArray, v: FloatArray) -> FloatArray:
@@ -58,15 +52,12 @@ def two_bone_ik(
     weight: FloatArray,
     left: FloatArray,
     forward: FloatArray,
-    span: int = 0,
 ) -> None:
     """Turn hip and knee (global rotations, in place) so the ankle reaches toward `goal` by `weight`.
     A knee bent forward or sideways keeps its plane; a straight one (whose plane is float noise) or
     one bent backward bends about the body's left-right line (`left`, per frame), its shin toward
     the back (`forward` is the body's front), and one between the two turns gradually from the one
-    plane to the other (BACKWARD). A knee's plane is read over `span` rows either side (the rows are
-    consecutive frames; plane_span), each row's counted by how bent its knee is. The foot keeps its
-    world orientation."""
+    plane to the other (BACKWARD). The foot keeps its world orientation."""
     hip, knee, ankle = joints
     t = np.flatnonzero(weight > 0)
     if not len(t):
@@ -79,9 +70,9 @@ def two_bone_ik(
     # A knee bent forward (or sideways) enough turns in its own plane (the source's, kept); a
     # straight or backward one is rebuilt about the left-right line, shin to the back; one between
     # is turned about the thigh from the kept toward the rebuilt (BACKWARD).
-    plane = _summed(np.cross(pos[:, hip] - pos[:, knee], pos[:, ankle] - pos[:, knee]), t, span)
+    plane = np.cross(h - k, a - k)
+    now = np.arccos(np.clip(np.sum(unit(h - k) * unit(a - k), axis=-1), -1.0, 1.0))
     along = unit(k - h)
-    plane -= along * np.sum(plane * along, axis=-1, keepdims=True)  # square to the thigh, as the knee's hinge
     hinge = left[t] - along * np.sum(left[t] * along, axis=-1, keepdims=True)
     sideways = np.linalg.norm(hinge, axis=-1) < 1e-6  # a thigh along the hips: its own plane
     hinge = np.where(sideways[:, None], plane, hinge)
@@ -89,12 +80,12 @@ def two_bone_ik(
     # of that line square to it, and a knee bent straight back read under BACKWARD[1]
     tilt = np.where(sideways, -1.0, np.sum(unit(plane) * unit(hinge), axis=-1))
     rebuilt_share = np.clip((tilt - BACKWARD[0]) / (BACKWARD[1] - BACKWARD[0]), 0.0, 1.0)
-    rebuilt_share[np.linalg.norm(plane, axis=-1) <= np.sin(STRAIGHT) * thigh * shin] = 1.0
+    rebuilt_share[np.pi - now <= STRAIGHT] = 1.0
     bend = np.pi - want  # 0: straight
     rebuilt = [quat.rotate(quat.from_axis_angle(unit(hinge), sign * bend), along) for sign in (1.0, -1.0)]
     backward = np.sum(rebuilt[0] * forward[t], axis=-1) <= np.sum(rebuilt[1] * forward[t], axis=-1)
     rebuilt_dir = np.where(backward[:, None], rebuilt[0], rebuilt[1])
-    kept = quat.rotate(quat.from_axis_angle(unit(plane), want), unit(h - k))  # the shin `want` from the thigh
+    kept = quat.rotate(quat.from_axis_angle(unit(plane), want - now), unit(a - k))  # opens the angle to want
     shin_dir = np.where(
         (rebuilt_share < 1.0)[:, None], _turned_toward(kept, rebuilt_dir, along, rebuilt_share), rebuilt_dir
     )
@@ -110,19 +101,6 @@ def two_bone_ik(
     glob[t, ankle] = foot
     pos[t, knee] = h + quat.rotate(swing, k - h)
     pos[t, ankle] = h + quat.rotate(swing, new_a - h)
-
-
-def plane_span(fps: float) -> int:
-    """PLANE_SPAN in frames at `fps`."""
-    return round(PLANE_SPAN * fps)
-
-
-def _summed(rows: FloatArray, t: IndexArray, span: int) -> FloatArray:
-    """Per row in `t`, the sum of `rows` (T, 3) over the `span` rows either side of it (within T)."""
-    if span == 0:
-        return rows[t]
-    total = np.concatenate([np.zeros((1, 3)), np.cumsum(rows, axis=0)])
-    return total[np.minimum(t + span + 1, len(rows))] - total[np.maximum(t - span, 0)]
 
 
 def _turned_toward(u: FloatArray, v: FloatArray, axis: FloatArray, share: FloatArray) -> FloatArray:

@@ -38,7 +38,7 @@ from ..model.errors import SkeletonError
 from ..model.rig import Rig
 from ..model.roles import SIDES
 from ..model.skeleton import Motion, Skeleton, forward_kinematics
-from .ik import arc, joint_path, plane_span, two_bone_ik
+from .ik import arc, joint_path, two_bone_ik
 
 # Each role's bone: from the role joint toward the next role down the chain (None: no role below,
 # the bone points to the joint's own child or end site).
@@ -399,7 +399,7 @@ def _plant_feet(
         goal[:, 2] = np.maximum(goal[:, 2], ankle[:, 2] + below)
         moved = ((weight > 0.0) | (below > 0.0)).astype(np.float64)
         joints = (target_roles[f"hip_{s}"], target_roles[f"knee_{s}"], ankle_t)
-        two_bone_ik(mapping.target, pos, glob, joints, goal, moved, left, forward, plane_span(out.fps))
+        two_bone_ik(mapping.target, pos, glob, joints, goal, moved, left, forward)
     return Motion(
         skeleton=out.skeleton, fps=out.fps, root_pos=root_pos, local_rot=local_rotations(mapping.target, glob)
     )
