@@ -12,8 +12,9 @@ For an impact at B on a playing motion:
       the servos stiffen from BC's gains to CD's over CD_RAMP rather than at once;
   CF  the simulated CD is faded into the clip's E..F (root lerp, joint slerp); at F the pose is the
       clip's (exactly, but for legs that hold a planted foot: see Feet below), and the clip plays on
-      from there, placed where the character is. F is C + `transition`; for a fall it may come up
-      to `fall_transition` later, where the clip's pelvis moves most steadily (_calm_end).
+      from there, placed where the character is. F is C + `transition`; for a fall (or a body down
+      keeping the fall it plays) it may come up to `fall_transition` later, where the clip's pelvis
+      moves most steadily (_calm_end).
 What we add beyond the paper, and why:
 - A clip whose library entry names a `next` clip (a get-up after a fall, paper Fig. 3) is followed
   by it, placed where the fall ends and faded in over `chain_blend`.
@@ -139,8 +140,9 @@ class ReactionSettings:
     reaction_window: BC, seconds of free physics after the hit [0.25, a human reaction time].
     transition: C to F, seconds of PD tracking faded into the clip [0.5: against a third of a second,
       the fade's pops and a walker's stops are fewer (tools/bench.py quality), its feet skid more].
-    fall_transition: for a fall, the longest the transition may run: F is put where the clip's
-      pelvis moves most steadily, from `transition` to this (_calm_end) [0.95: a fade ending as the
+    fall_transition: for a fall (or a body down keeping the fall it plays), the longest the
+      transition may run: F is put where the clip's pelvis moves most steadily, from `transition`
+      to this (_calm_end) [0.95: a fade ending as the
       body lands hands the seam the landing's jolt; at F the pelvis of 58 of 528 reactions, nearly
       all falls, accelerated more than real walks do 1% of the time: docs/measurements.md].
     profile: the ragdoll's joint profile, "anatomical" or "paper" (physics/anatomy.py) ["anatomical"].
@@ -197,7 +199,8 @@ class Reaction:
     """The result for one impact. Frames are on the output's clock.
 
     frame_b, frame_c, frame_f: the impact, the end of BC (classify and search), the end of the
-      transition (pose = the clip's); end_frame: the last frame of the reaction (clip, get-up).
+      transition (pose = the clip's; past the output's end where a kept motion ends mid-fade);
+      end_frame: the last frame of the reaction (clip, get-up).
     probabilities: class slug -> probability (empty without a classifier); predicted: the most
       probable class, or the override. scope: what the search covered ("all", a class, ...).
     match: the search's best window (search.Match), None when the motion was kept; reaction_class,
@@ -343,8 +346,8 @@ def react(
         clip = place(clip_raw, *placement)
     steps = max(1, round(settings.transition * motion.fps))
     # a fall, or a body down keeping the fall it plays: F where that lands calmly
-    falls = is_fall(match.reaction_class) if match is not None else falling is not None
-    if falls and settings.fall_transition > settings.transition:
+    fall_like = is_fall(match.reaction_class) if match is not None else falling is not None
+    if fall_like and settings.fall_transition > settings.transition:
         steps = _calm_end(clip, frame_e, steps, round(settings.fall_transition * motion.fps), ragdoll.rig)
     clip_ef = clip.frames(frame_e, steps + 1)  # E..F; a clip that ends sooner holds its last pose
     # theta_blend: what the character was playing (an earlier reaction, if one plays; a kept walk where
@@ -376,8 +379,8 @@ def react(
     to_c = (before.slice(0, lead), sim.slice(0, frame_c - lead))
     if match is None:  # the motion plays on from F; the reaction ends there
         out = _join(*to_c, transition, clip.slice(frame_e + steps + 1, clip.num_frames))
-        # where the fade runs past the motion's end, it faded into the motion's last pose held: a
-        # runner stopped dead (a toe at 251 m/s^2); the motion ends where it ends, mid-fade
+        # where the fade runs past the motion's end, it faded into the motion's last pose held and a
+        # runner stopped dead: the motion ends where it ends, mid-fade
         out = out.slice(0, max(min(out.num_frames, motion.num_frames), frame_c + 1))
         clock.lap("blend")
         chained, chain_fade, end_frame = None, [], min(frame_c + steps, out.num_frames - 1)
@@ -578,7 +581,10 @@ def _search(
     order = [CLASS_SLUGS[k] for k in ranked]
     if falling is not None:
         falls = _with_push([falling] + [slug for slug in order if is_fall(slug) and slug != falling], off)
-        allowed: BoolArray | None = reachable_windows(library, query, round(settings.transition * library.fps))
+        # the shortest fade's frames: over a fall's longest, a kneeling clip's own fall onto its face
+        # ruled its windows out against a body still kneeling, and rougher ones were taken
+        fade = round(settings.transition * library.fps)
+        allowed: BoolArray | None = reachable_windows(library, query, falls, fade)
         reachable = [slug for slug in falls if allowed[_windows(library, slug)].any()]
         if not reachable and lying:
             return _Choice(None, "no fall clip of the push's way lies as the body does (each would stand it up or "
@@ -586,8 +592,10 @@ def _search(
         if not reachable:  # a body going down for the first time falls anyway: the nearest fall
             allowed, reachable = None, falls
         match = search_with_fallback(library, query, reachable, settings.search_threshold, allowed=allowed)
-        turned = f"the outcome rule's {falling} {OFF_PUSH}; played {match.reaction_class}"
-        return _Choice(match, turned if reachable[0] != falling else "")
+        notes = [f"the outcome rule's {falling} {OFF_PUSH}"] if falls[0] != falling else []
+        if reachable[0] != falls[0]:
+            notes.append(f"no {falls[0]} clip lies as the body does")
+        return _Choice(match, "; ".join(notes) + f"; played {match.reaction_class}" if notes else "")
     chance = {} if probabilities is None else dict(zip(CLASS_SLUGS, map(float, probabilities), strict=True))
     turned = f"the classifier's {order[0]} {OFF_PUSH}; " if probabilities is not None and order[0] in off else ""
     ranked_all, order = order, _with_push(order, off)

@@ -13,9 +13,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from reactive_anim.core.model import bvh
+from reactive_anim.core.model import bvh, quat
 from reactive_anim.core.model.errors import ImpactError, SimulationError
 from reactive_anim.core.model.impact import Impact
+from reactive_anim.core.model.skeleton import Motion
+from reactive_anim.core.physics import workspace
 from reactive_anim.core.physics.ragdoll import build_ragdoll
 from reactive_anim.core.physics.simulate import simulate_impact, state_from_mocap, track
 from reactive_anim.core.physics.workspace import BC_GAINS, CD_GAINS, Workspace, servo_kp
@@ -198,3 +200,26 @@ def test_a_gain_ramp_stiffens_the_servos_from_its_start_gains_to_the_tracking_ga
     assert np.abs(ramped.qpos[-1] - at_once.qpos[-1]).max() > 1e-3
     track(ragdoll, bc.state, walk, 0.2, target_start=frame_c, ramp=(BC_GAINS, 0.15), workspace=workspace)
     np.testing.assert_array_equal(workspace.model.actuator_gainprm[:, 0], stiff)
+
+
+def test_limbs_that_start_inside_each_other_pass_through_rather_than_kick_apart(monkeypatch) -> None:
+    """The sample idle with its left thigh swung 20 degrees into the right (the capsules 5-8 cm inside
+    each other, as a capture's crossed or sitting legs can put them): nudged at 5 N·s, the contact
+    solver kicked the legs apart at over 3 m/s within a frame; let through each other for the run
+    (workspace.pass_overlaps), the body barely moves. Threw a sitting body half a metre up."""
+    idle = bvh.read_bvh(REPO / "sample_clips" / "idle.bvh")
+    ragdoll = build_ragdoll(idle.skeleton, reference=idle)
+    hip = idle.skeleton.index(ragdoll.roles["hip_l"])
+    rot = idle.local_rot.copy()
+    rot[:, hip] = quat.mul(quat.from_axis_angle(np.array([0.0, 1.0, 0.0]), np.radians(20.0)), rot[:, hip])
+    crossed = Motion(skeleton=idle.skeleton, fps=idle.fps, root_pos=idle.root_pos, local_rot=rot,
+                     local_pos=idle.local_pos)  # fmt: skip
+    nudge = Impact(10.0, ragdoll.roles["chest"], (1.0, 0.0, 0.0), 5.0)
+
+    def fastest() -> float:
+        moved = simulate_impact(ragdoll, crossed, nudge).motion.global_positions()
+        return float(np.linalg.norm(np.diff(moved, axis=0), axis=-1).max() * idle.fps)
+
+    assert fastest() < 1.0
+    monkeypatch.setattr(workspace, "START_OVERLAP", 10.0)  # nothing let through
+    assert fastest() > 3.0

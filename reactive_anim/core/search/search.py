@@ -116,13 +116,17 @@ def search_with_fallback(
     for slug in class_order:
         if slug not in CLASS_SLUGS:
             library.require_class(slug)  # raises, naming the slug and the known classes
-        if slug not in library.class_ranges:
+        if slug not in library.class_ranges or not _any_allowed(library, slug, allowed):
             continue
         match = best_of([slug])
         if match.accepted:
             return match
         first = first or match
     return first or best_of(None)
+
+
+def _any_allowed(library: Library, slug: str, allowed: BoolArray | None) -> bool:
+    return allowed is None or bool(allowed[library.search_index().windows_of([slug])].any())
 
 
 def _match(library: Library, query: Query, best: Best, accepted: bool, scope: str) -> Match:
