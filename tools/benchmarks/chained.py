@@ -16,12 +16,15 @@ quality.AFTER) against the goals the single pushes have:
 - pelvis acceleration within a frame of the second reaction's C and F under the real p99, or under
   what the motion it plays has there: the first reaction's fall landing on the floor at 48 m/s^2 is
   no seam of the second's (the share under the p99 alone is printed beside it).
+Every second reaction's figures go to out/quality/chained.json, contact sheets of the WORST by
+acceleration and by the seams' excess to out/quality/chained_<measure>.png (as the quality group's).
 """
 
 from __future__ import annotations
 
 import json
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -29,12 +32,13 @@ from reactive_anim.core.classify.classifier import load_classifier
 from reactive_anim.core.model.errors import ReactiveAnimError
 from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.model.skeleton import Motion
-from reactive_anim.core.react import DOWN_HEIGHT, Reaction, react
-from reactive_anim.core.search.library import load_library
+from reactive_anim.core.react import DOWN_HEIGHT, Reaction, ReactionClassifier, react
+from reactive_anim.core.search.library import Library, load_library
 from reactive_anim.core.search.reach import HIPS_RISE
 from tools.devkit import believability as bl
 from tools.devkit.mocap import REPO, mocap_files
 from tools.devkit.poses import ground_axes
+from tools.sample_clips.sheets import png_bytes
 
 from . import quality
 from .common import skipped
@@ -56,44 +60,54 @@ def bench_chained() -> None:
     rows, failures = [], 0
     for real in quality.pushed_takes(refs):
         push = quality.Pushing.on(real, library, classifier)
-        first_frame = round(quality.IMPACT_AT[0] * (real.motion.num_frames - 1))
-        for side, strength in FIRST:
-            try:
-                first = push.react(push.impact(first_frame, "chest", side, strength))
-            except ReactiveAnimError as error:
-                failures += 1
-                print(f"# {GROUP}: {real.take.name} {side} {strength:g} N·s: {type(error).__name__}: {error}")
-                continue
-            played = first.motion
-            assert played is not None
+        for first_push in FIRST:
             for after in SECOND_AFTER:
-                frame = first.frame_c + round(after * real.motion.fps)
-                if frame >= played.num_frames - 1:
-                    continue
-                forward, left = ground_axes(played, frame, real.roles)
-                for side2, strength2 in SECOND:
-                    way = {"front": -forward, "right": left}[side2]
-                    impact = Impact(float(frame), real.roles["chest"], tuple(way), strength2)
+                for second_push in SECOND:
+                    case = (first_push, after, second_push)
                     try:
-                        second = react(played, impact, library, classifier, source=real.motion, ragdoll=push.ragdoll,
-                                       workspace=push.workspace, casting=push.casting)  # fmt: skip
+                        made = chain(push, *case)
                     except ReactiveAnimError as error:
                         failures += 1
-                        print(f"# {GROUP}: {real.take.name} {side} {strength:g} N·s, then {side2} {strength2:g} "
-                              f"N·s {after} s after C: {type(error).__name__}: {error}")  # fmt: skip
+                        print(f"# {GROUP}: {real.take.name} {case}: {type(error).__name__}: {error}")
                         continue
-                    rows.append(measure(push, played, second, first.reaction_class, side2))
+                    if made is not None:
+                        rows.append({**measure(push, *made), "case": case})
     if not rows:
         print(f"# {GROUP}: no reaction measured")
         return
     quality.print_rows(figures(rows, refs, failures))
     quality.OUT.mkdir(parents=True, exist_ok=True)
     (quality.OUT / "chained.json").write_text(json.dumps(rows, indent=None, default=float))
+    sheets = write_sheets(rows, refs, library, classifier)
     took = time.perf_counter() - start
-    print(f"# {GROUP}: {len(rows)} second reactions in {took:.0f} s; each in {quality.OUT / 'chained.json'}")
+    print(f"# {GROUP}: {len(rows)} second reactions in {took:.0f} s; each in {quality.OUT / 'chained.json'}, "
+          f"contact sheets: {', '.join(p.name for p in sheets)}")  # fmt: skip
 
 
-def measure(push: quality.Pushing, played: Motion, second: Reaction, first_reaction: str, side: str) -> dict:
+def chain(
+    push: quality.Pushing, first_push: tuple[str, float], after: float, second_push: tuple[str, float]
+) -> tuple[Motion, Reaction, str] | None:
+    """The first push (side, N·s) at the first of quality.IMPACT_AT, then the second `after` seconds
+    after its C, on the reacted motion: the motion it plays, the second reaction and the first's
+    class (None where the second would land on the output's last frame). Deterministic, so the
+    sheets make the worst again."""
+    real = push.real
+    first_frame = round(quality.IMPACT_AT[0] * (real.motion.num_frames - 1))
+    first = push.react(push.impact(first_frame, "chest", *first_push))
+    played = first.motion
+    assert played is not None
+    frame = first.frame_c + round(after * real.motion.fps)
+    if frame >= played.num_frames - 1:
+        return None
+    forward, left = ground_axes(played, frame, real.roles)
+    way = {"front": -forward, "right": left}[second_push[0]]
+    impact = Impact(float(frame), real.roles["chest"], tuple(way), second_push[1])
+    second = react(played, impact, push.library, push.classifier, source=real.motion, ragdoll=push.ragdoll,
+                   workspace=push.workspace, casting=push.casting)  # fmt: skip
+    return played, second, first.reaction_class
+
+
+def measure(push: quality.Pushing, played: Motion, second: Reaction, first_reaction: str) -> dict:
     """One second reaction's figures."""
     real, out = push.real, second.motion
     assert out is not None
@@ -113,13 +127,14 @@ def measure(push: quality.Pushing, played: Motion, second: Reaction, first_react
     seams = [s for s in seams if np.isfinite(pelvis_accel[s - 1 : s + 2]).any()]  # the stride leaves the last frames
     return {
         "take": real.take.name, "first": first_reaction, "frame": second.frame_b, "class": second.reaction_class,
-        "clip": second.clip, "side": side, "strength": second.impact.strength, "c": second.frame_c, "f": second.frame_f,
+        "clip": second.clip, "c": second.frame_c, "f": second.frame_f, "window": (a, b),
         "kept": second.kept_motion, "depth": float(np.nanmax(bl.depth_under_floor(points[a:b], real.floor))),
         "accel": float(np.nanmax(accel[a:b])), "accel_at": int(a + np.nanargmax(accel[a:b])),
         "down": bool(height[a] < low),
         "raised": float(height[a:f].max() - height[a] - (was[a:f].max() - was[a])),
         "seams": [float(np.nanmax(pelvis_accel[s - 1 : s + 2])) for s in seams],
         "played_seams": [float(np.nanmax(played_accel[s - 1 : s + 2])) for s in seams],
+        "seam_frames": seams,
     }  # fmt: skip
 
 
@@ -149,3 +164,34 @@ def figures(rows: list[dict], refs: quality.References, failures: int) -> list[q
         f"p99 {refs.pelvis_p99:.3g} m/s^2", ">= 95 %", share >= goal, seams=len(seams),
         under_p99=round(100 * float(np.mean([s <= refs.pelvis_p99 for s, _ in seams])), 1))  # fmt: skip
     return out
+
+
+def write_sheets(
+    rows: list[dict], refs: quality.References, library: Library, classifier: ReactionClassifier | None
+) -> list[Path]:
+    """The WORST second reactions by acceleration and by their seams' excess over the real p99 or the
+    played motion's, made again and drawn as the quality group's sheets (quality.contact_sheet: the
+    grey figure is the take unpushed) in out/quality/chained_<measure>.png, with a .txt per sheet."""
+    for row in rows:
+        excess = [s - max(refs.pelvis_p99, p) for s, p in zip(row["seams"], row["played_seams"], strict=True)]
+        worst = int(np.argmax(excess)) if excess else -1
+        row["seam_excess"] = excess[worst] if excess else -np.inf
+        row["seam_at"] = row["seam_frames"][worst] if excess else row["frame"]
+    pushes: dict[str, quality.Pushing] = {}
+    written = []
+    for name, key, peak in (("acceleration", "accel", "accel_at"), ("seams", "seam_excess", "seam_at")):
+        cases, lines = [], [f"chained_{name}: worst {quality.WORST} by {key}; columns: frames from the second "
+                            "push to the window's end, side view | front view each"]  # fmt: skip
+        for rec in sorted(rows, key=lambda r: r[key], reverse=True)[: quality.WORST]:
+            real = refs.takes[rec["take"]]
+            push = pushes.setdefault(rec["take"], quality.Pushing.on(real, library, classifier))
+            made = chain(push, *rec["case"])
+            assert made is not None
+            cases.append((rec, push, made[1], made[1].impact))
+            lines.append(json.dumps({k: rec[k] for k in ("take", "case", "first", "class", "clip", key, peak)},
+                                    ensure_ascii=False, default=float))  # fmt: skip
+        path = quality.OUT / f"chained_{name}.png"
+        path.write_bytes(png_bytes(quality.contact_sheet(cases, peak)))
+        path.with_suffix(".txt").write_text("\n".join(lines) + "\n")
+        written.append(path)
+    return written

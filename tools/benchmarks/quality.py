@@ -641,7 +641,7 @@ def contact_sheet(cases: list[tuple[dict, Pushing, Reaction, Impact]], peak_key:
         a, b = rec["window"]
         frames = sheet_frames(a, b, int(rec[peak_key]))
         peak = int(rec[peak_key])
-        forward, left = ground_axes(source, a, roles)
+        forward, left = ground_axes(out, a, roles)  # at B the output is the motion pushed, as it was
         pelvis, hit = out.skeleton.index(roles["pelvis"]), out.skeleton.index(impact.bone)
         colours = _colours(out, roles)
         for col, frame in enumerate(frames):
