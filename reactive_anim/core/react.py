@@ -64,7 +64,7 @@ from .classify.capture import foot_bodies
 from .classify.features import FeatureReader, feature_rig
 from .classify.outcome import COLLAPSE_HEIGHT, STEP_CLASSES, Outcome, collapsing, judge, way
 from .model.acceleration import accelerations, stride_frames
-from .model.arrays import BoolArray, FloatArray, IndexArray
+from .model.arrays import BoolArray, FloatArray
 from .model.classes import CLASS_SLUGS, CLASSES, is_fall, reaction_class
 from .model.errors import Cancelled, ImpactError, LibraryError, SkeletonError
 from .model.impact import Impact
@@ -76,7 +76,7 @@ from .physics.simulate import SimResult, simulate_push, track
 from .physics.workspace import BC_GAINS, Workspace
 from .search.library import Library
 from .search.reach import reachable_windows
-from .search.search import Match, search, search_with_fallback
+from .search.search import Match, search, search_with_fallback, with_allowed
 from .search.window import (
     TABLE2_POSITION_WEIGHTS,
     TABLE2_ROTATION_WEIGHTS,
@@ -585,7 +585,7 @@ def _search(
         # ruled its windows out against a body still kneeling, and rougher ones were taken
         fade = round(settings.transition * library.fps)
         allowed: BoolArray | None = reachable_windows(library, query, falls, fade)
-        reachable = [slug for slug in falls if allowed[_windows(library, slug)].any()]
+        reachable = with_allowed(library, falls, allowed)
         if not reachable and lying:
             return _Choice(None, "no fall clip of the push's way lies as the body does (each would stand it up or "
                                  "turn it over): kept the motion it plays, the hit simulated", falling)  # fmt: skip
@@ -621,11 +621,6 @@ def _search(
     if turned:
         note = turned + (note or f"played {match.reaction_class}")
     return _Choice(match, note)
-
-
-def _windows(library: Library, slug: str) -> IndexArray:
-    """A class's windows in the library's search index (none for a class it lacks)."""
-    return library.search_index().windows_of([slug])
 
 
 def _with_push(classes: list[str], off: frozenset[str]) -> list[str]:

@@ -31,7 +31,6 @@ import numpy as np
 from reactive_anim.core.classify.classifier import load_classifier
 from reactive_anim.core.model.errors import ReactiveAnimError
 from reactive_anim.core.model.impact import Impact
-from reactive_anim.core.model.skeleton import Motion
 from reactive_anim.core.react import DOWN_HEIGHT, Reaction, ReactionClassifier, react
 from reactive_anim.core.search.library import Library, load_library
 from reactive_anim.core.search.reach import HIPS_RISE
@@ -61,17 +60,23 @@ def bench_chained() -> None:
     for real in quality.pushed_takes(refs):
         push = quality.Pushing.on(real, library, classifier)
         for first_push in FIRST:
+            try:
+                first = first_reaction(push, first_push)
+            except ReactiveAnimError as error:
+                failures += 1
+                print(f"# {GROUP}: {real.take.name} {first_push}: {type(error).__name__}: {error}")
+                continue
             for after in SECOND_AFTER:
                 for second_push in SECOND:
-                    case = (first_push, after, second_push)
                     try:
-                        made = chain(push, *case)
+                        second = second_reaction(push, first, after, second_push)
                     except ReactiveAnimError as error:
                         failures += 1
-                        print(f"# {GROUP}: {real.take.name} {case}: {type(error).__name__}: {error}")
+                        print(f"# {GROUP}: {real.take.name} {first_push}, {after} s, {second_push}: "
+                              f"{type(error).__name__}: {error}")  # fmt: skip
                         continue
-                    if made is not None:
-                        rows.append({**measure(push, *made), "case": case})
+                    if second is not None:
+                        rows.append({**measure(push, first, second), "case": (first_push, after, second_push)})
     if not rows:
         print(f"# {GROUP}: no reaction measured")
         return
@@ -84,17 +89,19 @@ def bench_chained() -> None:
           f"contact sheets: {', '.join(p.name for p in sheets)}")  # fmt: skip
 
 
-def chain(
-    push: quality.Pushing, first_push: tuple[str, float], after: float, second_push: tuple[str, float]
-) -> tuple[Motion, Reaction, str] | None:
-    """The first push (side, N·s) at the first of quality.IMPACT_AT, then the second `after` seconds
-    after its C, on the reacted motion: the motion it plays, the second reaction and the first's
-    class (None where the second would land on the output's last frame). Deterministic, so the
-    sheets make the worst again."""
-    real = push.real
-    first_frame = round(quality.IMPACT_AT[0] * (real.motion.num_frames - 1))
-    first = push.react(push.impact(first_frame, "chest", *first_push))
-    played = first.motion
+def first_reaction(push: quality.Pushing, first_push: tuple[str, float]) -> Reaction:
+    """The first push (side, N·s) on the chest at the first of quality.IMPACT_AT."""
+    first_frame = round(quality.IMPACT_AT[0] * (push.real.motion.num_frames - 1))
+    return push.react(push.impact(first_frame, "chest", *first_push))
+
+
+def second_reaction(
+    push: quality.Pushing, first: Reaction, after: float, second_push: tuple[str, float]
+) -> Reaction | None:
+    """The second push (side, N·s, relative to the facing then) on the chest `after` seconds after
+    the first reaction's C, on the motion as reacted (None where it would land on its last frame).
+    Deterministic, so the sheets make the worst again."""
+    real, played = push.real, first.motion
     assert played is not None
     frame = first.frame_c + round(after * real.motion.fps)
     if frame >= played.num_frames - 1:
@@ -102,14 +109,14 @@ def chain(
     forward, left = ground_axes(played, frame, real.roles)
     way = {"front": -forward, "right": left}[second_push[0]]
     impact = Impact(float(frame), real.roles["chest"], tuple(way), second_push[1])
-    second = react(played, impact, push.library, push.classifier, source=real.motion, ragdoll=push.ragdoll,
-                   workspace=push.workspace, casting=push.casting)  # fmt: skip
-    return played, second, first.reaction_class
+    return react(played, impact, push.library, push.classifier, source=real.motion, ragdoll=push.ragdoll,
+                 workspace=push.workspace, casting=push.casting)  # fmt: skip
 
 
-def measure(push: quality.Pushing, played: Motion, second: Reaction, first_reaction: str) -> dict:
+def measure(push: quality.Pushing, first: Reaction, second: Reaction) -> dict:
     """One second reaction's figures."""
-    real, out = push.real, second.motion
+    real, played, out = push.real, first.motion, second.motion
+    assert played is not None
     assert out is not None
     pos, rot = out.global_transforms()
     a, b = quality.window_of(second, out.fps, out.num_frames)
@@ -126,7 +133,7 @@ def measure(push: quality.Pushing, played: Motion, second: Reaction, first_react
     seams = [s for s in (second.frame_c, second.frame_f) if s + 1 < min(len(pelvis_accel), len(played_accel))]
     seams = [s for s in seams if np.isfinite(pelvis_accel[s - 1 : s + 2]).any()]  # the stride leaves the last frames
     return {
-        "take": real.take.name, "first": first_reaction, "frame": second.frame_b, "class": second.reaction_class,
+        "take": real.take.name, "first": first.reaction_class, "frame": second.frame_b, "class": second.reaction_class,
         "clip": second.clip, "c": second.frame_c, "f": second.frame_f, "window": (a, b),
         "kept": second.kept_motion, "depth": float(np.nanmax(bl.depth_under_floor(points[a:b], real.floor))),
         "accel": float(np.nanmax(accel[a:b])), "accel_at": int(a + np.nanargmax(accel[a:b])),
@@ -185,9 +192,10 @@ def write_sheets(
         for rec in sorted(rows, key=lambda r: r[key], reverse=True)[: quality.WORST]:
             real = refs.takes[rec["take"]]
             push = pushes.setdefault(rec["take"], quality.Pushing.on(real, library, classifier))
-            made = chain(push, *rec["case"])
-            assert made is not None
-            cases.append((rec, push, made[1], made[1].impact))
+            first_push, after, second_push = rec["case"]
+            second = second_reaction(push, first_reaction(push, first_push), after, second_push)
+            assert second is not None
+            cases.append((rec, push, second, second.impact))
             lines.append(json.dumps({k: rec[k] for k in ("take", "case", "first", "class", "clip", key, peak)},
                                     ensure_ascii=False, default=float))  # fmt: skip
         path = quality.OUT / f"chained_{name}.png"

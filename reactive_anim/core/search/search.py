@@ -116,7 +116,7 @@ def search_with_fallback(
     for slug in class_order:
         if slug not in CLASS_SLUGS:
             library.require_class(slug)  # raises, naming the slug and the known classes
-        if slug not in library.class_ranges or not _any_allowed(library, slug, allowed):
+        if slug not in with_allowed(library, [slug], allowed):
             continue
         match = best_of([slug])
         if match.accepted:
@@ -125,8 +125,12 @@ def search_with_fallback(
     return first or best_of(None)
 
 
-def _any_allowed(library: Library, slug: str, allowed: BoolArray | None) -> bool:
-    return allowed is None or bool(allowed[library.search_index().windows_of([slug])].any())
+def with_allowed(library: Library, classes: list[str], allowed: BoolArray | None) -> list[str]:
+    """The classes, in order, that the library has and that have a window `allowed` allows (every
+    one the library has where it is None)."""
+    index = library.search_index()
+    return [slug for slug in classes if slug in library.class_ranges
+            and (allowed is None or bool(allowed[index.windows_of([slug])].any()))]  # fmt: skip
 
 
 def _match(library: Library, query: Query, best: Best, accepted: bool, scope: str) -> Match:
