@@ -638,7 +638,7 @@ def test_a_push_on_a_character_sitting_on_the_floor_starts_from_its_pose(library
     chest while sitting: the sitting hips are flexed 154 degrees, beyond the ragdoll's 120. Clamped
     to the limit at the start, the legs swung 30 cm into the floor and the contacts threw the body a
     metre up; the run now starts in the mocap's pose, its thighs, which the capture crosses deeper
-    than the capsules allow, let through each other (workspace.pass_overlaps: they threw the body
+    than the capsules allow, let through each other (workspace.forward_passing_overlaps: they threw the body
     half a metre up), and the hips stay near the floor, to F and on: the push from the front is
     faded only into a backward fall the sitting body can reach (reach.reachable_windows), or none.
     The second push lands as the first fall goes down: the ragdoll, low, bounces off the floor in BC

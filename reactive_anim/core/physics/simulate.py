@@ -46,7 +46,7 @@ from .workspace import (
     CD_GAINS,
     ServoGains,
     Workspace,
-    pass_overlaps,
+    forward_passing_overlaps,
     place_bodies,
     reset_data,
     servo_kp,
@@ -222,9 +222,7 @@ def _run(ws: Workspace, start: SimState, plan: _Plan) -> SimResult:
     data.mocap_pos[0] = (0.0, 0.0, start.floor)
     if not (np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))):
         raise SimulationError("the start state holds NaN or infinite values")
-    mujoco.mj_forward(model, data)
-    if pass_overlaps(ws, data):
-        mujoco.mj_forward(model, data)
+    forward_passing_overlaps(ws, data)
     if plan.hit is not None:
         check_hit_speed(model, data, *plan.hit)
     with CapturedWarnings() as messages:

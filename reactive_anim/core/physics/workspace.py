@@ -37,7 +37,9 @@ CD_DAMPING_TIME = 0.03  # kv / kp, seconds
 BC_SERVO_FRACTION = 0.25  # BC servo gains as a fraction of CD's
 
 
-START_OVERLAP = 0.01  # m: limbs starting further inside each other than this pass through the body (pass_overlaps)
+START_OVERLAP = (
+    0.01  # m: limbs starting further inside each other than this pass through the body (forward_passing_overlaps)
+)
 PASSING = 2  # the contact type bit of a geom let through the body: only the floor meets it
 
 
@@ -78,7 +80,7 @@ class Workspace:
         self.model = copy.copy(ragdoll.model)
         address = {int(a): j for j, a in enumerate(self.model.jnt_qposadr)}
         self.hinge_joints = np.array([address[int(a)] for a in ragdoll.index.hinge_qpos], dtype=int)
-        # the floor also meets limbs let through the body (pass_overlaps), whose type bit is PASSING
+        # the floor also meets limbs let through the body (forward_passing_overlaps), whose type bit is PASSING
         self.model.geom_conaffinity[ragdoll.index.floor_geom] |= PASSING
         self.sim_data = mujoco.MjData(self.model)
         self.kin_data = mujoco.MjData(self.model)
@@ -135,22 +137,22 @@ def set_servos(ws: Workspace, gains: ServoGains, kp: FloatArray | None = None) -
     model.actuator_biasprm[:, 2] = -kv
 
 
-def pass_overlaps(ws: Workspace, data: mujoco.MjData) -> bool:
-    """For one run, limbs that start inside each other (contacts found by mj_forward on the start
-    state deeper than START_OVERLAP) pass through the body, the floor still under them: of each
-    such pair, the second geom meets the floor and nothing else. A sitting body whose thighs the
-    capture crosses 9 cm deeper than the capsules allow was thrown half a metre up by them at a
-    nudge. Every other geom meets all as compiled. Returns whether any was let through (then
-    mj_forward again)."""
+def forward_passing_overlaps(ws: Workspace, data: mujoco.MjData) -> None:
+    """mj_forward on a run's start state, with limbs that start inside each other (contacts deeper
+    than START_OVERLAP) let through the body for the run, the floor still under them: of each such
+    pair, the second geom meets the floor and nothing else. A sitting body whose thighs the capture
+    crosses deeper than the capsules allow was thrown half a metre up by them at a nudge. Every
+    geom meets all as compiled before the contacts are read, so no run inherits an earlier one's."""
     model, floor = ws.model, ws.ragdoll.index.floor_geom
     body = np.arange(model.ngeom) != floor
     model.geom_contype[body], model.geom_conaffinity[body] = 1, 1
+    mujoco.mj_forward(model, data)
     deep = [
         int(c.geom2) for c in data.contact[: data.ncon] if c.dist < -START_OVERLAP and floor not in (c.geom1, c.geom2)
     ]
     if deep:
         model.geom_contype[deep], model.geom_conaffinity[deep] = PASSING, 0
-    return bool(deep)
+        mujoco.mj_forward(model, data)
 
 
 def set_limits(ws: Workspace, qpos: FloatArray) -> None:
