@@ -31,9 +31,9 @@ from reactive_anim.core.react import ReactionSettings, character_ragdoll, react
 from reactive_anim.core.search.library import load_library
 from reactive_anim.core.transition.footing import (
     CATCH_UP_FINISH,
-    FOOT_LIFT_MOST,
     LANDING_ACCEL,
     LIFT_EASE,
+    LIMB_LIFT_MOST,
     MAX_OFFSET,
     SWING_BAND,
     SWING_CLEARANCE,
@@ -257,15 +257,17 @@ def test_no_foot_goes_through_the_floor_in_a_reaction(reactions):
 
 
 def test_a_hand_under_the_floor_is_lifted_onto_it_keeping_its_turn():
-    """The idle sunk 0.85 m over the drag's frames: the hanging wrists 1-2 cm under the floor."""
-    sunk = replace(IDLE, root_pos=IDLE.root_pos - np.array([0.0, 0.0, 0.85]) * _drag_rows()[:, None])
+    """The idle sunk 0.75 m over the drag's frames: the hanging hands' fingers up to about 10 cm under
+    the floor (within LIMB_LIFT_MOST)."""
+    sunk = replace(IDLE, root_pos=IDLE.root_pos - np.array([0.0, 0.0, 0.75]) * _drag_rows()[:, None])
     floor = sole(IDLE)
     index = IDLE.skeleton.index
     wrists = [index(ROLES[f"wrist_{s}"]) for s in "lr"]
     shoulders = [index(ROLES[f"shoulder_{s}"]) for s in "lr"]
     pos, glob = sunk.global_transforms()
     rows = slice(START, START + FRAMES)
-    assert pos[rows, wrists, 2].max() < floor  # the pose the test needs
+    lowest = np.stack([_lowest_of_hand(sunk, s)[rows] for s in "lr"])
+    assert lowest.max() < floor and lowest.min() > floor - LIMB_LIFT_MOST  # the pose the test needs
     held = hold_feet(sunk, RIG, (START, START + FRAMES), [], floor)
     new_pos, new_glob = held.global_transforms()
     assert min(_lowest_of_hand(held, s)[rows].min() for s in "lr") > floor - 1e-6
@@ -277,7 +279,7 @@ def test_a_hand_under_the_floor_is_lifted_onto_it_keeping_its_turn():
 
 def test_a_foot_deep_in_the_floor_is_lifted_by_the_leg_only_so_far_and_the_body_takes_the_rest():
     """The idle sunk 0.3 m into the floor, eased over 20 frames (a fade of a thrown body into a
-    kneeling clip put a foot that deep): the legs lift the feet by FOOT_LIFT_MOST at most (lifting
+    kneeling clip put a foot that deep): the legs lift the feet by LIMB_LIFT_MOST at most (lifting
     it all, a knee folded up over the hip and dropped 70 cm in three frames), and the body's lift
     (lift_onto_floor) brings every foot point onto the floor."""
     depth = 0.3 * np.clip((np.arange(IDLE.num_frames) - START) / 20.0, 0.0, 1.0)
@@ -286,10 +288,28 @@ def test_a_foot_deep_in_the_floor_is_lifted_by_the_leg_only_so_far_and_the_body_
     held = hold_feet(sunk, RIG, frames, [], floor)
     raised = held.global_positions() - sunk.global_positions()
     ankles = [RIG.joints[f"ankle_{side}"] for side in "lr"]
-    assert raised[:, ankles, 2].max() == pytest.approx(FOOT_LIFT_MOST, abs=0.005)
+    assert raised[:, ankles, 2].max() == pytest.approx(LIMB_LIFT_MOST, abs=0.005)
     lifted = lift_onto_floor(held, frames, floor)
     for side in "lr":
         assert contact_points(lifted, side)[START - 10 :, 2].min() > floor - 1e-6
+
+
+def test_a_hand_deep_in_the_floor_is_lifted_by_the_arm_only_so_far_and_the_body_takes_the_rest():
+    """The idle sunk 1.1 m, eased over 20 frames, its hanging hands about 25 cm under the floor (a
+    fade swung an arm that deep beside a shoulder lying on the floor: lifting it all, the elbow
+    folded shut for a frame): the arms lift the hands by LIMB_LIFT_MOST at most, and the body's
+    lift brings every hand point onto the floor."""
+    depth = 1.1 * np.clip((np.arange(IDLE.num_frames) - START) / 20.0, 0.0, 1.0)
+    sunk = replace(IDLE, root_pos=IDLE.root_pos - np.c_[np.zeros((IDLE.num_frames, 2)), depth])
+    floor, frames = sole(IDLE), (START - 10, IDLE.num_frames)
+    assert min(_lowest_of_hand(sunk, s).min() for s in "lr") < floor - 2 * LIMB_LIFT_MOST  # the pose the test needs
+    held = hold_feet(sunk, RIG, frames, [], floor)
+    wrists = [IDLE.skeleton.index(ROLES[f"wrist_{s}"]) for s in "lr"]
+    raised = held.global_positions()[:, wrists, 2] - sunk.global_positions()[:, wrists, 2]
+    assert raised.max() == pytest.approx(LIMB_LIFT_MOST, abs=0.005)
+    lifted = lift_onto_floor(held, frames, floor)
+    for side in "lr":
+        assert _lowest_of_hand(lifted, side)[START - 10 :].min() > floor - 1e-6
 
 
 def _drag_rows() -> np.ndarray:

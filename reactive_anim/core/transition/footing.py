@@ -24,11 +24,11 @@ floor (the lowest its feet get in its own motion) is also lifted onto it: the ra
 the skeleton's toes do not quite agree, and toes went centimetres under the floor in transitions.
 That lift is eased in and out over SWING_EASE like the swing's: dropped in the frame a foot rose
 out of the floor by itself, it turned a knee from 1 to 11 rad/s in a frame at C. The leg lifts a
-foot by FOOT_LIFT_MOST at most; the body's lift below takes the rest. A hand under the
-floor there is lifted onto it by the arm's IK, as a foot is: a fade between two poses whose hands
-both clear the floor can pass one under it, and a clip cast onto longer arms puts the hands a few
-cm under (docs/measurements.md). Knees a fade puts under the floor cannot be lifted so: with the
-hip and the ankle where they are, a kneeling knee at the bottom of its circle about them can only
+foot by LIMB_LIFT_MOST at most; the body's lift below takes the rest. A hand under the
+floor there is lifted onto it by the arm's IK, as a foot is, and as far: a fade between two poses
+whose hands both clear the floor can pass one under it, and a clip cast onto longer arms puts the
+hands a few cm under (docs/measurements.md). Knees a fade puts under the floor cannot be lifted so:
+with the hip and the ankle where they are, a kneeling knee at the bottom of its circle about them can only
 move sideways, by far more than its depth. What is still under the floor after the feet and hands
 (a knee, a head through a fade of a roll, a kneeling clip cast onto longer shins) lifts the whole
 body instead (lift_onto_floor), eased in and out so the lift adds no pop.
@@ -74,12 +74,14 @@ LANDING_ACCEL = 60.0
 SWING_BAND = 0.3  # ... fully from this much faster (a held foot moves at a few cm/s; a swing at 3-5 m/s) ...
 SWING_CLEARANCE = 0.04  # m: ... to this over the floor (above model/floor.py's ramp: it no longer stands) ...
 SWING_EASE = 0.08  # s: ... eased in and out over this either side (a foot's lift onto the floor too)
-# m: the most the leg lifts a foot out of the floor (a sweep's SWING_CLEARANCE may come on top);
-# deeper, the body is lifted (lift_onto_floor). Hands have no such cap (none was seen to fold). A
-# fade from a body the push threw flat into a kneeling clip put a foot 30 cm under the floor: the
-# leg lifting it all folded the knee up over the hip and dropped it 70 cm in three frames (240
-# m/s^2; four of the reactions over the real falls' largest, docs/measurements.md)
-FOOT_LIFT_MOST = 0.15
+# m: the most the leg lifts a foot (the arm a hand) out of the floor (a sweep's SWING_CLEARANCE may
+# come on top); deeper, the body is lifted (lift_onto_floor). A fade from a body the push threw flat
+# into a kneeling clip put a foot 30 cm under the floor: the leg lifting it all folded the knee up
+# over the hip and dropped it 70 cm in three frames (240 m/s^2; four of the reactions over the real
+# falls' largest). An arm lifting a hand 29 cm onto the floor beside a shoulder on it folded the
+# elbow shut for a frame (214 m/s^2), and the body's lift raised the shoulder that much after it
+# (docs/measurements.md)
+LIMB_LIFT_MOST = 0.15
 UP = np.array([0.0, 0.0, 1.0])
 SETTLE = 1.0  # s after the reaction first looked at for the offsets to be let go (a walker's feet lift in it)
 LIFT_EASE = 0.15  # s over which the body is lifted onto the floor before and after the deepest frame
@@ -140,7 +142,7 @@ def _hold(
         down, slide = _sliding(points[side], floor, motion.fps)
         steps = np.diff(pos[:, ankle, :2], axis=0)
         offset = _offsets(down, np.where(fading[:, None], slide, 0.0), steps, motion.fps, MAX_OFFSET * leg)
-        sunk = np.minimum(np.maximum(floor - points[side][..., 2].min(axis=1), 0.0), FOOT_LIFT_MOST)
+        sunk = np.minimum(np.maximum(floor - points[side][..., 2].min(axis=1), 0.0), LIMB_LIFT_MOST)
         lift = _eased_lift(np.where(reaction, sunk, 0.0), ease)
         lift += _swing_lift(points[side] + lift[:, None, None] * UP, offset, fading, floor, ease, motion.fps)
         moves = (np.abs(offset).max(axis=1) > 1e-6) | (lift > 1e-6)
@@ -179,7 +181,7 @@ def _hands_out_of_the_floor(
         chain = (joint[f"shoulder_{side}"], joint[f"elbow_{side}"], joint[f"wrist_{side}"])
         wrist = chain[2]
         lowest = lowest_foot_point(skeleton, wrist, pos, glob)  # a hand's points as a foot's: fingers, tips
-        need = np.where(rows, np.maximum(min(floor, float(lowest[0])) - lowest, 0.0), 0.0)
+        need = np.where(rows, np.clip(min(floor, float(lowest[0])) - lowest, 0.0, LIMB_LIFT_MOST), 0.0)
         turned = need > 1e-6
         if turned.any():
             goal = pos[:, wrist].copy()
