@@ -90,7 +90,7 @@ from .transition.blend import blend, blend_travel, carry, fade_weights, place
 from .transition.casting import Casting
 from .transition.fade_shape import calmest_fade, fade_context
 from .transition.footing import hold_feet, lift_onto_floor
-from .transition.soften import context_frames, soften
+from .transition.soften import OUTDONE, OUTDONE_PASSES, context_frames, soften
 
 RESUME_WAIT = 60.0  # Eq. 1 cost per second a reaction goes on before the motion resumes (_resume)
 RESUME_RATE = 30.0  # fade starts and re-entries tried per second (_resume)
@@ -164,8 +164,9 @@ class ReactionSettings:
       past 60-90 degrees: CD held up while it fades back into the motion].
     hold_feet: planted feet keep their footprints where the sources cross-fade, and the body stays
       out of the floor (footing.py) [True; False leaves the feet where the fades put them, sliding].
-    soften: the simulated stretch (BC, CD) averaged over time where a joint's acceleration spikes
-      (soften.py) [True; False plays it as sampled: a struck foot stops between two frames].
+    soften: the simulated stretch (BC, CD) averaged over time where a joint's acceleration spikes,
+      and the whole reaction where a joint outdoes real falls (soften.py) [True; False plays it as
+      sampled: a struck foot stops between two frames].
     calm_fade: a fall's C..F faded along whichever of a few fade shapes accelerates the body least,
       where the plain one makes it accelerate faster than the simulation and the clip do alone, and
       jolts the pelvis at F no harder than real motion mostly does (fade_shape.py) [True; False:
@@ -410,6 +411,12 @@ def react(
     ground_root = static_root(source or motion)
     if ground_root is not None:
         out = hold_root(out, *ground_root)
+    if settings.soften:
+        # what the stitching still throws faster than real falls ever move (after the root is held:
+        # a ground root's sources put it anywhere, and averaged so it dragged the hips metres)
+        calmed = soften(out, reacting[0], OUTDONE, OUTDONE_PASSES, reacting[1])
+        if calmed is not out:
+            out = lift_onto_floor(calmed, reacting, casting.sole) if settings.hold_feet else calmed
     clock.lap("splice")
     return Reaction(
         impact=impact,

@@ -9,7 +9,7 @@ import pytest
 from reactive_anim.core.model import bvh
 from reactive_anim.core.model.acceleration import STRIDE
 from reactive_anim.core.model.skeleton import Motion
-from reactive_anim.core.transition.soften import SIGMA, SPIKE_FULL, soften
+from reactive_anim.core.transition.soften import OUTDONE, OUTDONE_PASSES, SIGMA, SPIKE_FULL, soften
 from tests.support.mocap import REPO
 from tools.devkit import believability as bl
 
@@ -59,6 +59,31 @@ def test_a_harder_stop_is_softened_again_until_it_no_longer_spikes(walk) -> None
     around = (STOP // 2 - 10, STOP // 2 + 10)
     assert largest_acceleration(stopped, *around) > 200.0
     assert largest_acceleration(soften(stopped, STOP // 2 - 30), *around) < SPIKE_FULL
+
+
+def test_frames_from_last_on_are_read_but_never_written(stopped) -> None:
+    """Softened up to `last` only (a reaction's end, where the original take plays on): the frames
+    from `last` on stay bit for bit though the stop spikes there too, and those before it near the
+    stop are softened."""
+    last = STOP + 1
+    out = soften(stopped, STOP - 30, last=last)
+    assert np.array_equal(out.local_rot[last:], stopped.local_rot[last:])
+    assert np.array_equal(out.root_pos[last:], stopped.root_pos[last:])
+    assert not np.array_equal(out.local_rot[STOP - 2 : last], stopped.local_rot[STOP - 2 : last])
+
+
+def test_a_whole_reaction_is_softened_only_where_it_outdoes_real_falls(walk, stopped) -> None:
+    """With OUTDONE: the walk stopped dead (123 m/s^2) is left as it is, and played twice as fast
+    and stopped (257) it ends under the real falls' largest (166), softened OUTDONE_PASSES times at
+    most."""
+    out = soften(stopped, STOP - 30, OUTDONE, OUTDONE_PASSES)
+    assert np.array_equal(out.local_rot, stopped.local_rot) and np.array_equal(out.root_pos, stopped.root_pos)
+    fast = Motion(walk.skeleton, walk.fps, walk.root_pos[::2], walk.local_rot[::2])
+    held = np.minimum(np.arange(fast.num_frames), STOP // 2)
+    hard = Motion(fast.skeleton, fast.fps, fast.root_pos[held], fast.local_rot[held])
+    around = (STOP // 2 - 10, STOP // 2 + 10)
+    assert largest_acceleration(hard, *around) > 200.0
+    assert largest_acceleration(soften(hard, STOP // 2 - 30, OUTDONE, OUTDONE_PASSES), *around) < 166.0
 
 
 def test_a_motion_without_spikes_is_returned_as_it_is() -> None:
