@@ -36,6 +36,8 @@ body instead (lift_onto_floor), eased in and out so the lift adds no pop.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..model.arrays import BoolArray, FloatArray
@@ -282,31 +284,40 @@ def _offsets(down: FloatArray, slide: FloatArray, steps: FloatArray, fps: float,
     (1 - down) at CATCH_UP_RATE, fast while it is large and slowing as it shrinks, so the foot
     eases onto the motion's path instead of stopping short on it; never changing the foot's
     velocity over the ground faster than the motion does (`steps`: the ankle's own steps over the
-    ground, (T - 1, 2)) or LANDING_ACCEL, whichever is more (_landing)."""
-    offset = np.zeros((len(slide) + 1, 2))
+    ground, (T - 1, 2)) or LANDING_ACCEL, whichever is more (_landing). Each frame's offset follows
+    from the one before, so the loop runs on Python complex numbers (x + iy), not 2-vectors: a
+    quarter of a reaction's time went to numpy's per-call overhead here."""
+    slides, moves, downs = _complex(slide), _complex(steps), down.tolist()
+    decay, finish, landing = CATCH_UP_RATE / fps, CATCH_UP_FINISH / fps, LANDING_ACCEL / fps**2
+    offset = [0j] * (len(slides) + 1)
     for t in range(1, len(offset)):
-        held = offset[t - 1] - slide[t - 1]
-        size = float(np.linalg.norm(held))
+        held = offset[t - 1] - slides[t - 1]
+        size = abs(held)
         if size > 0.0:
-            air = 1.0 - down[t - 1]
-            held *= max(0.0, size * np.exp(-air * CATCH_UP_RATE / fps) - air * CATCH_UP_FINISH / fps) / size
+            air = 1.0 - downs[t - 1]
+            held *= max(0.0, size * math.exp(-air * decay) - air * finish) / size
         if t >= 2:
-            held = _landing(held, offset[t - 2 : t], steps[t - 2 : t], LANDING_ACCEL / fps**2)
-        size = float(np.linalg.norm(held))
-        offset[t] = held * min(1.0, most / max(size, 1e-12))  # the cap last: beyond it, the foot slides
-    return offset
+            held = _landing(held, (offset[t - 2], offset[t - 1]), (moves[t - 2], moves[t - 1]), landing)
+        offset[t] = held * min(1.0, most / max(abs(held), 1e-12))  # the cap last: beyond it, the foot slides
+    values = np.array(offset)
+    return np.stack([values.real, values.imag], axis=1)
 
 
-def _landing(held: FloatArray, before: FloatArray, steps: FloatArray, most: float) -> FloatArray:
+def _complex(xy: FloatArray) -> list[complex]:
+    """Rows (x, y) of `xy` (N, 2) as x + iy."""
+    return (xy[:, 0] + 1j * xy[:, 1]).tolist()
+
+
+def _landing(held: complex, before: tuple[complex, complex], steps: tuple[complex, complex], most: float) -> complex:
     """The offset `held` into a frame moved back toward the step it continues so that the foot's step into
     the frame differs from its step into the frame before by at most `most` (m per frame per
     frame) or by what the motion's own steps differ, whichever is more: a foot the fade brings down
     fast is then stopped over two or three frames, a few cm further on, as a landing foot is,
     rather than in one. before: the offsets into the two frames before; steps: the motion's steps
-    into the frame before and into this one."""
+    into the frame before and into this one (all as x + iy)."""
     change = steps[1] - steps[0] + held - 2.0 * before[1] + before[0]
-    size = float(np.linalg.norm(change))
-    allowed = max(float(np.linalg.norm(steps[1] - steps[0])), most)
+    size = abs(change)
+    allowed = max(abs(steps[1] - steps[0]), most)
     return held if size <= allowed else held - change * (1.0 - allowed / size)
 
 
