@@ -93,9 +93,9 @@ def _pass(motion: Motion, first: int, last: int, spike: tuple[float, float]) -> 
     if first >= last:
         return motion
     stride, reach = stride_frames(motion.fps), _reach(motion.fps)
-    lo = max(first - stride, 0)
+    lo, hi = max(first - stride, 0), min(last + 2 * stride + reach, n)  # what a row softened can read
     spikes = np.zeros(n)
-    spikes[lo:] = _spikes(motion.slice(lo, n).global_positions(), motion.fps, spike)
+    spikes[lo:hi] = _spikes(motion.slice(lo, hi).global_positions(), motion.fps, spike)
     amount = _widened(spikes, stride + reach)
     rows = first + np.flatnonzero(amount[first:last] > 0)  # the frames softened: no other is written
     if not len(rows):
