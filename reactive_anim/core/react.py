@@ -412,11 +412,13 @@ def react(
     if ground_root is not None:
         out = hold_root(out, *ground_root)
     if settings.soften:
-        # what the stitching still throws faster than real falls ever move (after the root is held:
-        # a ground root's sources put it anywhere, and averaged so it dragged the hips metres)
-        calmed = soften(out, reacting[0], OUTDONE, OUTDONE_PASSES, reacting[1])
+        # what the stitching still throws near or past the real falls' largest (after the root is
+        # held: a ground root's sources put it anywhere, and averaged so it dragged the hips metres)
+        calmed = soften(out, reacting[0], OUTDONE, passes=OUTDONE_PASSES, last=reacting[1])
         if calmed is not out:
             out = lift_onto_floor(calmed, reacting, casting.sole) if settings.hold_feet else calmed
+            if ground_root is not None:  # the lift raised the ground root with the body
+                out = hold_root(out, *ground_root)
     clock.lap("splice")
     return Reaction(
         impact=impact,

@@ -295,7 +295,7 @@ def test_a_foot_deep_in_the_floor_is_lifted_by_the_leg_only_so_far_and_the_body_
 
 
 def test_a_hand_deep_in_the_floor_is_lifted_by_the_arm_only_so_far_and_the_body_takes_the_rest():
-    """The idle sunk 1.1 m, eased over 20 frames, its hanging hands about 25 cm under the floor (a
+    """The idle sunk 1.1 m, eased over 20 frames, its hanging hands about 45 cm under the floor (a
     fade swung an arm that deep beside a shoulder lying on the floor: lifting it all, the elbow
     folded shut for a frame): the arms lift the hands by LIMB_LIFT_MOST at most, and the body's
     lift brings every hand point onto the floor."""

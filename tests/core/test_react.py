@@ -15,6 +15,7 @@ from reactive_anim.core.model.errors import Cancelled, ImpactError, LibraryError
 from reactive_anim.core.model.floor import FOOT_ON_FLOOR
 from reactive_anim.core.model.impact import Impact
 from reactive_anim.core.model.rig import Rig
+from reactive_anim.core.model.skeleton import static_root
 from reactive_anim.core.react import (
     OFF_PUSH,
     STILL_KEPT,
@@ -503,6 +504,9 @@ def test_no_joint_of_a_whole_reaction_moves_faster_than_real_falls(library, take
     assert r.motion is not None and is_fall(r.reaction_class)
     accel = bl.profile(r.motion, ragdoll.roles, bl.lowest_floor(motion, ragdoll.roles), start=0).accel
     assert np.nanmax(accel[frame + 2 : r.end_frame + 1]) < REAL_FALLS_LARGEST, r.clip
+    root, kept = static_root(motion), static_root(r.motion)  # the softened body lifted, its ground bone held
+    assert root is not None and kept is not None
+    assert np.array_equal(root[0], kept[0]) and np.array_equal(root[1], kept[1])
 
 
 def test_same_input_same_output(walk, library, ragdoll) -> None:

@@ -72,18 +72,31 @@ def test_frames_from_last_on_are_read_but_never_written(stopped) -> None:
     assert not np.array_equal(out.local_rot[STOP - 2 : last], stopped.local_rot[STOP - 2 : last])
 
 
-def test_a_whole_reaction_is_softened_only_where_it_outdoes_real_falls(walk, stopped) -> None:
-    """With OUTDONE: the walk stopped dead (123 m/s^2) is left as it is, and played twice as fast
-    and stopped (257) it ends under the real falls' largest (166), softened OUTDONE_PASSES times at
-    most."""
-    out = soften(stopped, STOP - 30, OUTDONE, OUTDONE_PASSES)
+def test_a_whole_reaction_is_softened_only_where_it_nears_real_falls(walk, stopped) -> None:
+    """With OUTDONE: the walk stopped dead (123 m/s^2) is left as it is; played four times as fast
+    and stopped (561), one pass leaves it over the real falls' largest (166), and OUTDONE_PASSES
+    passes bring it under."""
+    out = soften(stopped, STOP - 30, OUTDONE, passes=OUTDONE_PASSES)
     assert np.array_equal(out.local_rot, stopped.local_rot) and np.array_equal(out.root_pos, stopped.root_pos)
-    fast = Motion(walk.skeleton, walk.fps, walk.root_pos[::2], walk.local_rot[::2])
-    held = np.minimum(np.arange(fast.num_frames), STOP // 2)
+    fast = Motion(walk.skeleton, walk.fps, walk.root_pos[::4], walk.local_rot[::4])
+    stop = STOP // 4
+    held = np.minimum(np.arange(fast.num_frames), stop)
     hard = Motion(fast.skeleton, fast.fps, fast.root_pos[held], fast.local_rot[held])
-    around = (STOP // 2 - 10, STOP // 2 + 10)
-    assert largest_acceleration(hard, *around) > 200.0
-    assert largest_acceleration(soften(hard, STOP // 2 - 30, OUTDONE, OUTDONE_PASSES), *around) < 166.0
+    around = (stop - 8, stop + 8)
+    assert largest_acceleration(hard, *around) > 400.0
+    assert largest_acceleration(soften(hard, stop - 20, OUTDONE, passes=1), *around) > 166.0  # measured 173
+    assert largest_acceleration(soften(hard, stop - 20, OUTDONE, passes=OUTDONE_PASSES), *around) < 166.0  # 116
+
+
+def test_a_pass_up_to_last_writes_what_a_pass_over_the_whole_motion_writes_before_it(stopped) -> None:
+    """soften reads only the frames a row before `last` can see: before `last`, one pass up to it
+    is the same, bit for bit, as one pass over the whole motion, wherever `last` falls near the
+    stop."""
+    whole = soften(stopped, STOP - 30, passes=1)
+    for last in range(STOP - 25, STOP + 5):
+        part = soften(stopped, STOP - 30, passes=1, last=last)
+        assert np.array_equal(part.local_rot[:last], whole.local_rot[:last]), last
+        assert np.array_equal(part.root_pos[:last], whole.root_pos[:last]), last
 
 
 def test_a_motion_without_spikes_is_returned_as_it_is() -> None:

@@ -183,7 +183,8 @@ class Motion:
 def forward_kinematics(
     skeleton: Skeleton, root_pos: FloatArray, local_rot: FloatArray, offsets: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
-    """Global positions (T, J, 3) and rotations (T, J, 4), vectorised over frames.
+    """Global positions (T, J, 3) and rotations (T, J, 4), vectorised over frames: views of fresh
+    joint-major arrays (writable, not C-contiguous).
 
     offsets: (T, J, 3) or (J, 3) parent-relative translations; the root's row is ignored.
     """
