@@ -140,7 +140,8 @@ class Motion:
 
     def global_transforms(self) -> tuple[FloatArray, FloatArray]:
         """World joint positions (T, J, 3) and rotations (T, J, 4) by forward kinematics."""
-        return forward_kinematics(self.skeleton, self.root_pos, self.local_rot, self.joint_offsets())
+        offsets = self.skeleton.offsets if self.local_pos is None else self.local_pos
+        return forward_kinematics(self.skeleton, self.root_pos, self.local_rot, offsets)
 
     def global_positions(self) -> FloatArray:
         return self.global_transforms()[0]
@@ -191,7 +192,8 @@ def forward_kinematics(
     frames, count = local_rot.shape[:2]
     # joint-major inside (a level's joints gathered as whole rows, not strided across frames): a
     # third less time on a 101-joint rig; returned frame-major, as views
-    offsets = np.ascontiguousarray(np.moveaxis(np.broadcast_to(offsets, (frames, count, 3)), 1, 0))
+    # rest offsets (J, 3) broadcast over the frames as they are, per-frame ones copied joint-major
+    offsets = offsets[:, None] if offsets.ndim == 2 else np.ascontiguousarray(np.moveaxis(offsets, 1, 0))
     local = np.ascontiguousarray(np.moveaxis(local_rot, 1, 0))
     pos = np.empty((count, frames, 3))
     rot = np.empty((count, frames, 4))

@@ -73,7 +73,7 @@ def soften(
     docstring); the frames around them are read (context_frames of them before `first`), never
     changed, and so is every frame not softened. spike: the accelerations (m/s^2) from which a frame
     is softened, and fully (a fall's clip, made by the same physics, spikes only where it outdoes
-    real falls; a whole reaction only where it outdoes them: OUTDONE)."""
+    real falls; a whole reaction only where it nears or passes them: OUTDONE)."""
     for _ in range(passes):
         softened = _pass(motion, first, motion.num_frames if last is None else last, spike)
         if softened is motion:
@@ -99,8 +99,8 @@ def _pass(motion: Motion, first: int, last: int, spike: tuple[float, float]) -> 
         return motion
     stride, reach = stride_frames(motion.fps), _reach(motion.fps)
     lo, hi = max(first - stride, 0), min(last + 2 * stride + reach, n)  # what a row softened can read
-    spikes = np.zeros(n)
-    spikes[lo:hi] = _spikes(motion.slice(lo, hi).global_positions(), motion.fps, spike)
+    spikes = np.zeros(hi)
+    spikes[lo:] = _spikes(motion.slice(lo, hi).global_positions(), motion.fps, spike)
     amount = _widened(spikes, stride + reach)
     rows = first + np.flatnonzero(amount[first:last] > 0)  # the frames softened: no other is written
     if not len(rows):
